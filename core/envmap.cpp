@@ -1,0 +1,138 @@
+#include "core/envmap.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.h"
+
+namespace lpm {
+
+namespace {
+// Polar angle from +Y of row boundary k (0 = top).
+inline double rowTheta(double k, int height) { return k * kPi / height; }
+// Direction toward light for image coordinates (u in [0,1] across, theta polar from +Y).
+inline Vec3 dirFromUTheta(double u, double theta) {
+    const double lon = kPi - 2 * kPi * u;
+    const double s = std::sin(theta);
+    return {s * std::sin(lon), std::cos(theta), s * std::cos(lon)};
+}
+}  // namespace
+
+EnvMap::EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDegrees, float scale)
+    : width_(width), height_(height), pixels_(std::move(pixels)) {
+    if (width_ <= 0 || height_ <= 0 || pixels_.size() != size_t(width_) * height_)
+        throw Error("EnvMap", "bad image size " + std::to_string(width_) + "x" +
+                                  std::to_string(height_));
+    rot_ = Mat3::rotation({0, 1, 0}, rotateYDegrees * kPi / 180.0);
+    rotInv_ = rot_.transposed();
+    for (RGB& p : pixels_) {
+        for (int c = 0; c < 3; ++c) {
+            if (!std::isfinite(p[c]) || p[c] < 0)
+                throw Error("EnvMap", "pixel value " + std::to_string(p[c]) +
+                                          " is not a finite non-negative radiance");
+        }
+        p = p * scale;
+        maxValue_ = std::max(maxValue_, p.maxComponent());
+    }
+    // Sampling tables (double precision; sums are small).
+    rowCdf_.assign(height_ + 1, 0.0);
+    colCdf_.assign(size_t(height_) * (width_ + 1), 0.0);
+    pixelPdf_.assign(size_t(width_) * height_, 0.0);
+    std::vector<double> rowSum(height_, 0.0);
+    const double dPhi = 2 * kPi / width_;
+    for (int y = 0; y < height_; ++y) {
+        const double omega = dPhi * (std::cos(rowTheta(y, height_)) - std::cos(rowTheta(y + 1, height_)));
+        double* cdf = &colCdf_[size_t(y) * (width_ + 1)];
+        for (int x = 0; x < width_; ++x) {
+            const double w = double(pixel(x, y).average()) * omega;
+            cdf[x + 1] = cdf[x] + w;
+        }
+        rowSum[y] = cdf[width_];
+        rowCdf_[y + 1] = rowCdf_[y] + rowSum[y];
+    }
+    total_ = rowCdf_[height_];
+    if (total_ > 0) {
+        for (int y = 0; y < height_; ++y) {
+            const double* cdf = &colCdf_[size_t(y) * (width_ + 1)];
+            for (int x = 0; x < width_; ++x) pixelPdf_[size_t(y) * width_ + x] = (cdf[x + 1] - cdf[x]) / total_;
+        }
+    }
+}
+
+EnvMap EnvMap::constant(const RGB& radiance) { return EnvMap(2, 1, {radiance, radiance}); }
+
+void EnvMap::pixelOf(const Vec3& towardLight, int& px, int& py) const {
+    const Vec3 d = toImage(towardLight);
+    const double len = length(d);
+    const double lat = std::asin(std::clamp(d.y / len, -1.0, 1.0));
+    const double lon = std::atan2(d.x, d.z);
+    const double u = (kPi - lon) / (2 * kPi);
+    const double v = (kPi / 2 - lat) / kPi;
+    px = std::clamp(int(std::floor(u * width_)), 0, width_ - 1);
+    py = std::clamp(int(std::floor(v * height_)), 0, height_ - 1);
+}
+
+RGB EnvMap::lookup(const Vec3& towardLight) const {
+    int px, py;
+    pixelOf(towardLight, px, py);
+    return pixel(px, py);
+}
+
+double EnvMap::pdf(const Vec3& towardLight) const {
+    if (total_ <= 0) return 0;
+    int px, py;
+    pixelOf(towardLight, px, py);
+    const double omega = (2 * kPi / width_) *
+                         (std::cos(rowTheta(py, height_)) - std::cos(rowTheta(py + 1, height_)));
+    return pixelPdf_[size_t(py) * width_ + px] / omega;
+}
+
+RGB EnvMap::sample(double u1, double u2, Vec3& towardLight, double& pdfOut) const {
+    if (total_ <= 0) {
+        pdfOut = 0;
+        return RGB(0.f);
+    }
+    // Row.
+    const double t1 = u1 * total_;
+    int y = int(std::upper_bound(rowCdf_.begin(), rowCdf_.end(), t1) - rowCdf_.begin()) - 1;
+    y = std::clamp(y, 0, height_ - 1);
+    while (rowCdf_[y + 1] - rowCdf_[y] <= 0 && y > 0) --y;  // never land on an empty row
+    while (rowCdf_[y + 1] - rowCdf_[y] <= 0 && y < height_ - 1) ++y;
+    const double rowMass = rowCdf_[y + 1] - rowCdf_[y];
+    const double fy = std::clamp((t1 - rowCdf_[y]) / rowMass, 0.0, 1.0);
+    // Column, reusing the remainder of u1 would correlate; use u2 for the column and
+    // split the fractional part of the row sample for the in-pixel position.
+    const double* cdf = &colCdf_[size_t(y) * (width_ + 1)];
+    const double t2 = u2 * cdf[width_];
+    int x = int(std::upper_bound(cdf, cdf + width_ + 1, t2) - cdf) - 1;
+    x = std::clamp(x, 0, width_ - 1);
+    while (cdf[x + 1] - cdf[x] <= 0 && x > 0) --x;
+    while (cdf[x + 1] - cdf[x] <= 0 && x < width_ - 1) ++x;
+    const double fx = std::clamp((t2 - cdf[x]) / (cdf[x + 1] - cdf[x]), 0.0, 1.0);
+    // Uniform in solid angle inside the pixel: u uniform, cos(theta) uniform.
+    const double c0 = std::cos(rowTheta(y, height_)), c1 = std::cos(rowTheta(y + 1, height_));
+    const double cosT = c0 + fy * (c1 - c0);
+    const double theta = std::acos(std::clamp(cosT, -1.0, 1.0));
+    const double u = (x + fx) / width_;
+    towardLight = toWorld(dirFromUTheta(u, theta));
+    const double omega = (2 * kPi / width_) * (c0 - c1);
+    pdfOut = pixelPdf_[size_t(y) * width_ + x] / omega;
+    return pixel(x, y);
+}
+
+void EnvMap::forEachSubPixel(int sub, const std::function<void(const Vec3&, double, const RGB&)>& f) const {
+    sub = std::max(1, sub);
+    const int W = width_ * sub, H = height_ * sub;
+    const double dPhi = 2 * kPi / W;
+    for (int y = 0; y < H; ++y) {
+        const double t0 = rowTheta(y, H), t1 = rowTheta(y + 1, H);
+        const double omega = dPhi * (std::cos(t0) - std::cos(t1));
+        const double tc = std::acos(0.5 * (std::cos(t0) + std::cos(t1)));
+        for (int x = 0; x < W; ++x) {
+            const RGB& L = pixel(x / sub, y / sub);
+            f(toWorld(dirFromUTheta((x + 0.5) / W, tc)), omega, L);
+        }
+    }
+}
+
+}  // namespace lpm

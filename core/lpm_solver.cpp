@@ -1,0 +1,433 @@
+// Light Propagation Maps solver. Equations (docs/lpm_solver.md):
+//   segment of length l in a voxel with extinction s, tau = s l, T = exp(-tau):
+//     L_out = L_in T + Q l phi1(tau)
+//     Int L ds = L_in l phi1(tau) + Q l^2 phi2(tau)
+//   with phi1 = (1 - e^-tau)/tau, phi2 = (tau - 1 + e^-tau)/tau^2 (no 0/0 at s = 0).
+//   A ray of direction i (solid angle w_i, tube cross-section A_perp) deposits
+//   Phi_i(x) += A_perp Int L ds; W_i = w_i Phi_i / V is the radiance integrated over bin i.
+//   SH of S:        c_lm += W_i g^l Ybar_lm(i)              (Funk-Hecke for HG)
+//   next source:    U_d  += W_i F^{i,d} / w_d               (bin-averaged S)
+#include "core/lpm_solver.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "core/parallel.h"
+#include "core/quadrature.h"
+
+namespace lpm {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+struct Tally {
+    double injected[3] = {0, 0, 0}, escaped[3] = {0, 0, 0}, absorbed[3] = {0, 0, 0}, scattered[3] = {0, 0, 0};
+    std::uint64_t segments = 0;
+    void add(const Tally& o) {
+        for (int c = 0; c < 3; ++c) {
+            injected[c] += o.injected[c];
+            escaped[c] += o.escaped[c];
+            absorbed[c] += o.absorbed[c];
+            scattered[c] += o.scattered[c];
+        }
+        segments += o.segments;
+    }
+    static double mean(const double v[3]) { return (v[0] + v[1] + v[2]) / 3.0; }
+};
+
+// One propagation job: a direction swept through the whole grid, and how its deposit
+// folds into the SH result and the next order's unshot bins.
+struct Job {
+    Vec3 w;               // local unit travel direction
+    int axis = 0, sign = 1;
+    RGB boundary;         // radiance (irradiance for suns) entering through the faces
+    double weight = 1;    // solid angle of the direction bin (1 for suns)
+    const float* src = nullptr;  // per-voxel RGB radiance feeding the source, or null
+    RGB srcScale;         // Q_c = sigma_t * srcScale_c * src_c
+    std::vector<double> shCoef;   // per SH coefficient: multiplies Phi (includes 1/V)
+    std::vector<double> binCoef;  // per unshot bin: multiplies Phi (includes 1/V)
+};
+
+int dominantAxis(const Vec3& w) {
+    int a = 0;
+    if (std::fabs(w.y) > std::fabs(w[a])) a = 1;
+    if (std::fabs(w.z) > std::fabs(w[a])) a = 2;
+    return a;
+}
+
+// Sweeps one direction through the grid slice by slice (Fattal 2009 sec. 4): rays start
+// on the entry face on an r x r lattice per voxel, keep sub-voxel positions, and re-enter
+// at the opposite lateral face (carrying the boundary radiance again) when they leave
+// through a lateral face. The lattice tiles every slice exactly, so the rays' summed
+// A_perp * length in each voxel equals its volume.
+void sweep(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
+    const int a = job.axis, u = (a + 1) % 3, v = (a + 2) % 3;
+    const int N[3] = {m.nx, m.ny, m.nz};
+    const size_t stride[3] = {1, size_t(m.nx), size_t(m.nx) * m.ny};
+    const double h[3] = {m.voxelSize.x, m.voxelSize.y, m.voxelSize.z};
+    const Vec3& w = job.w;
+    const double wa = std::fabs(w[a]);
+    const double du = w[u] / wa * h[a] / h[u];
+    const double dv = w[v] / wa * h[a] / h[v];
+    const double sliceLen = h[a] / wa;
+    const double aPerp = (h[u] / r) * (h[v] / r) * wa;
+    const int nu = N[u], nv = N[v];
+    const size_t nRays = size_t(r) * nu * size_t(r) * nv;
+    const double inf = std::numeric_limits<double>::infinity();
+    const int su = du > 0 ? 1 : -1, sv = dv > 0 ? 1 : -1;
+    const double stepU = du != 0 ? 1.0 / std::fabs(du) : inf;
+    const double stepV = dv != 0 ? 1.0 / std::fabs(dv) : inf;
+    const float* sigma = m.sigmaT.data();
+    const float* src = job.src;
+    const double scale[3] = {job.srcScale.r, job.srcScale.g, job.srcScale.b};
+    const double alb[3] = {m.albedo.r, m.albedo.g, m.albedo.b};
+    const double bnd[3] = {job.boundary.r, job.boundary.g, job.boundary.b};
+
+    std::vector<double> pu(nRays), pv(nRays);
+    std::vector<double> L(nRays * 3);
+    double inj[3] = {0, 0, 0}, esc[3] = {0, 0, 0}, abs_[3] = {0, 0, 0}, sca[3] = {0, 0, 0};
+    std::uint64_t segs = 0;
+    for (size_t k = 0; k < nRays; ++k) {
+        pu[k] = (double(k % (size_t(r) * nu)) + 0.5) / r;
+        pv[k] = (double(k / (size_t(r) * nu)) + 0.5) / r;
+        for (int c = 0; c < 3; ++c) {
+            L[k * 3 + c] = bnd[c];
+            inj[c] += bnd[c];
+        }
+    }
+    const int na = N[a];
+    for (int t = 0; t < na; ++t) {
+        const int ia = job.sign > 0 ? t : na - 1 - t;
+        const size_t base = size_t(ia) * stride[a];
+        for (size_t k = 0; k < nRays; ++k) {
+            double* Lk = &L[k * 3];
+            double p = pu[k], q = pv[k];
+            int cu = std::clamp(int(std::floor(p)), 0, nu - 1);
+            int cv = std::clamp(int(std::floor(q)), 0, nv - 1);
+            double lamU = du > 0 ? (cu + 1 - p) * stepU : (du < 0 ? (p - cu) * stepU : inf);
+            double lamV = dv > 0 ? (cv + 1 - q) * stepV : (dv < 0 ? (q - cv) * stepV : inf);
+            double lam = 0;
+            for (;;) {
+                const double lamN = std::min(std::min(lamU, lamV), 1.0);
+                const double len = (lamN - lam) * sliceLen;
+                if (len > 0) {
+                    const size_t vox = base + size_t(cu) * stride[u] + size_t(cv) * stride[v];
+                    const double s = sigma[vox];
+                    const double tau = s * len;
+                    float* ph = phi + vox * 3;
+                    ++segs;
+                    if (tau == 0) {
+                        for (int c = 0; c < 3; ++c) ph[c] += float(aPerp * Lk[c] * len);
+                    } else {
+                        const double em = std::expm1(-tau);  // T - 1
+                        const double T = 1 + em;
+                        const double e1 = tau < 1e-4 ? len * (1 - tau * (0.5 - tau / 6)) : len * (-em) / tau;
+                        const double e2 = tau < 1e-3 ? len * len * (0.5 - tau * (1.0 / 6 - tau / 24))
+                                                     : len * len * (tau + em) / (tau * tau);
+                        for (int c = 0; c < 3; ++c) {
+                            const double Q = src ? s * scale[c] * src[vox * 3 + c] : 0.0;
+                            const double I = Lk[c] * e1 + Q * e2;  // Int L ds over the segment
+                            Lk[c] = Lk[c] * T + Q * e1;
+                            ph[c] += float(aPerp * I);
+                            sca[c] += s * alb[c] * I;
+                            abs_[c] += s * (1 - alb[c]) * I;
+                            inj[c] += Q * len;
+                        }
+                    }
+                }
+                lam = lamN;
+                if (lamN >= 1.0) break;
+                if (lamU <= lamV) {
+                    cu += su;
+                    lamU += stepU;
+                    if (cu < 0 || cu >= nu) {  // left through a lateral face: re-enter opposite
+                        cu = cu < 0 ? nu - 1 : 0;
+                        for (int c = 0; c < 3; ++c) {
+                            esc[c] += Lk[c];
+                            Lk[c] = bnd[c];
+                            inj[c] += bnd[c];
+                        }
+                    }
+                } else {
+                    cv += sv;
+                    lamV += stepV;
+                    if (cv < 0 || cv >= nv) {
+                        cv = cv < 0 ? nv - 1 : 0;
+                        for (int c = 0; c < 3; ++c) {
+                            esc[c] += Lk[c];
+                            Lk[c] = bnd[c];
+                            inj[c] += bnd[c];
+                        }
+                    }
+                }
+            }
+            p += du;
+            q += dv;
+            p -= std::floor(p / nu) * nu;
+            q -= std::floor(q / nv) * nv;
+            pu[k] = p;
+            pv[k] = q;
+        }
+    }
+    for (size_t k = 0; k < nRays; ++k)
+        for (int c = 0; c < 3; ++c) esc[c] += L[k * 3 + c];
+    // Boundary and escape terms were summed as radiance per ray; source terms as Q*len
+    // per ray (radiance * length); interactions as sigma * Int L ds. All scale by A_perp * w_i.
+    const double k = aPerp * job.weight;
+    for (int c = 0; c < 3; ++c) {
+        tally.injected[c] += inj[c] * k;
+        tally.escaped[c] += esc[c] * k;
+        tally.absorbed[c] += abs_[c] * k;
+        tally.scattered[c] += sca[c] * k;
+    }
+    tally.segments += segs;
+}
+
+}  // namespace
+
+LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) {
+    const auto t0 = Clock::now();
+    m.validate();
+    if (s.raysPerVoxel < 1 || s.raysPerVoxel > 16)
+        throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(s.raysPerVoxel));
+    if (s.shOrder < 0 || s.shOrder > kMaxShOrder)
+        throw Error("LPM", "SH order must be in 0..3, got " + std::to_string(s.shOrder));
+    if (!(s.tolerance > 0)) throw Error("LPM", "tolerance must be positive, got " + std::to_string(s.tolerance));
+    if (s.maxOrders < 1) throw Error("LPM", "max orders must be at least 1, got " + std::to_string(s.maxOrders));
+    for (const Sun& sun : lights.suns) {
+        if (!(length(sun.toSun) > 0)) throw Error("LPM", "sun direction must be non-zero");
+        for (int c = 0; c < 3; ++c)
+            if (!(sun.irradiance[c] >= 0) || !std::isfinite(sun.irradiance[c]))
+                throw Error("LPM", "sun irradiance must be finite and non-negative, got " + std::to_string(sun.irradiance[c]));
+        if (!(sun.angularDiameterDeg >= 0 && sun.angularDiameterDeg < 180))
+            throw Error("LPM", "sun angular diameter must be in [0, 180) degrees, got " + std::to_string(sun.angularDiameterDeg));
+    }
+
+    LpmResult res;
+    const size_t N = m.voxelCount();
+    const double V = m.voxelVolume();
+    const Mat3& R = m.localToWorld;
+    const Mat3 Rinv = R.transposed();
+
+    // Decisions: SH order and angular resolution of the unshot buffers.
+    res.shOrder = s.shOrder;
+    if (m.g == 0.0 && s.shOrder > 0) {
+        res.shOrder = 0;
+        res.decisions.push_back("SH order 0: the phase function is isotropic (g = 0), so S has no directional part");
+    }
+    res.coeffs = shCount(res.shOrder);
+    int binsPerFace = s.binsPerFace;
+    if (binsPerFace < 0) {
+        binsPerFace = m.g == 0.0 ? 0 : 2;
+        res.decisions.push_back(m.g == 0.0 ? "one isotropic unshot bin: g = 0"
+                                           : "2x2 unshot bins per cube face (24): g = " + std::to_string(m.g));
+    }
+    const CubeQuadrature quad(s.directionsPerFace);
+    std::unique_ptr<CubeQuadrature> binQuad;
+    if (binsPerFace > 0) binQuad.reset(new CubeQuadrature(binsPerFace));
+    const FormFactors ff(quad, binQuad.get(), m.g);
+    const int nd = quad.count(), nb = ff.binCount(), nc = res.coeffs;
+    res.directionCount = nd;
+    res.binCount = nb;
+
+    // Per-direction SH factors: g^l times the bin average of Y_lm (world directions).
+    std::vector<double> ybar(size_t(nd) * nc, 0.0);
+    {
+        std::vector<Vec3> sd;
+        std::vector<double> sw;
+        double y[16];
+        for (int i = 0; i < nd; ++i) {
+            quad.subdivide(i, 8, sd, sw);
+            for (size_t j = 0; j < sd.size(); ++j) {
+                shEval(R * sd[j], y);
+                for (int k = 0; k < nc; ++k) ybar[size_t(i) * nc + k] += y[k] * sw[j] / quad.weight(i);
+            }
+            for (int k = 0; k < nc; ++k) ybar[size_t(i) * nc + k] *= std::pow(m.g, shBand(k));
+        }
+    }
+
+    // Environment radiance box-filtered over each direction bin (light travelling along
+    // local w arrives from world direction -R w). Every sub-pixel lands in one bin.
+    std::vector<RGB> envBin(nd, RGB(0.f));
+    const bool hasEnv = lights.env && lights.env->integral() > 0;
+    if (hasEnv) {
+        const EnvMap& env = *lights.env;
+        const double pixels = double(env.width()) * env.height();
+        const int sub = std::clamp(int(std::ceil(std::sqrt(256.0 * nd / pixels))), 1, 16);
+        std::vector<double> acc(size_t(nd) * 3, 0.0);
+        env.forEachSubPixel(sub, [&](const Vec3& toward, double omega, const RGB& L) {
+            const int i = quad.indexOf(Rinv * (-toward));
+            for (int c = 0; c < 3; ++c) acc[size_t(i) * 3 + c] += L[c] * omega;
+        });
+        for (int i = 0; i < nd; ++i)
+            for (int c = 0; c < 3; ++c) envBin[i][c] = float(acc[size_t(i) * 3 + c] / quad.weight(i));
+    } else {
+        res.decisions.push_back("no environment pass: no environment light");
+    }
+    if (!m.hasEmission()) res.decisions.push_back("no emission source: no emission grid");
+
+    // Fold coefficients for LPM directions.
+    auto makeJob = [&](int i) {
+        Job j;
+        j.w = quad.dir(i);
+        j.axis = CubeQuadrature::faceAxis(quad.face(i));
+        j.sign = CubeQuadrature::faceSign(quad.face(i));
+        j.weight = quad.weight(i);
+        j.shCoef.resize(nc);
+        for (int k = 0; k < nc; ++k) j.shCoef[k] = quad.weight(i) * ybar[size_t(i) * nc + k] / V;
+        j.binCoef.resize(nb);
+        const double* row = ff.row(i);
+        for (int d = 0; d < nb; ++d) j.binCoef[d] = quad.weight(i) * row[d] / (ff.binWeight(d) * V);
+        return j;
+    };
+
+    res.sh.assign(N * nc * 3, 0.0f);
+    std::vector<float> unshot(size_t(nb) * N * 3, 0.0f), next(size_t(nb) * N * 3, 0.0f);
+    const int r = s.raysPerVoxel;
+    const size_t batchMem = size_t(512) << 20;
+    const size_t maxBatch = std::max<size_t>(1, batchMem / std::max<size_t>(1, N * 3 * sizeof(float)));
+
+    // Runs jobs in batches: sweeps in parallel (one buffer per job), then folds the batch
+    // in job order, in parallel over voxels. Thread-count independent by construction.
+    auto runJobs = [&](const std::vector<Job>& jobs, Tally& total) {
+        const size_t batch = std::min(jobs.size(), std::min<size_t>(maxBatch, 16));
+        std::vector<std::vector<float>> phi(batch);
+        for (size_t b0 = 0; b0 < jobs.size(); b0 += batch) {
+            const size_t nbatch = std::min(batch, jobs.size() - b0);
+            std::vector<Tally> tallies(nbatch);
+            parallelForChunks(nbatch, 1, [&](size_t jb, size_t je) {
+                for (size_t j = jb; j < je; ++j) {
+                    phi[j].assign(N * 3, 0.0f);
+                    sweep(m, jobs[b0 + j], r, phi[j].data(), tallies[j]);
+                }
+            });
+            for (size_t j = 0; j < nbatch; ++j) total.add(tallies[j]);
+            parallelForChunks(N, 4096, [&](size_t vb, size_t ve) {
+                for (size_t j = 0; j < nbatch; ++j) {
+                    const Job& job = jobs[b0 + j];
+                    const float* ph = phi[j].data();
+                    for (size_t x = vb; x < ve; ++x) {
+                        const float p[3] = {ph[x * 3], ph[x * 3 + 1], ph[x * 3 + 2]};
+                        if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
+                        float* out = &res.sh[x * nc * 3];
+                        for (int k = 0; k < nc; ++k) {
+                            const double a = job.shCoef[k];
+                            if (a == 0) continue;
+                            for (int c = 0; c < 3; ++c) out[k * 3 + c] += float(a * p[c]);
+                        }
+                        for (int d = 0; d < nb; ++d) {
+                            const double bc = job.binCoef[d];
+                            float* un = &next[(size_t(d) * N + x) * 3];
+                            for (int c = 0; c < 3; ++c) un[c] += float(bc * p[c]);
+                        }
+                    }
+                }
+            });
+        }
+    };
+
+    auto recordPass = [&](int pass, const Tally& t, Clock::time_point tp) {
+        PassStats ps;
+        ps.pass = pass;
+        ps.injected = Tally::mean(t.injected);
+        ps.absorbed = Tally::mean(t.absorbed);
+        ps.escaped = Tally::mean(t.escaped);
+        ps.scattered = Tally::mean(t.scattered);
+        ps.seconds = secondsSince(tp);
+        res.passes.push_back(ps);
+        res.absorbed += ps.absorbed;
+        res.escaped += ps.escaped;
+        res.segments += t.segments;
+        if (s.progress) {
+            char buf[200];
+            std::snprintf(buf, sizeof buf, "pass %d: scattered %.6g (%.3g of injected), %.2f s", pass, ps.scattered,
+                          res.injected > 0 ? ps.scattered / res.injected : 0.0, ps.seconds);
+            s.progress(buf);
+        }
+    };
+
+    // Pass 0: external light (environment through the boundary, emission, suns).
+    {
+        const auto tp = Clock::now();
+        std::vector<Job> jobs;
+        if (hasEnv || m.hasEmission()) {
+            for (int i = 0; i < nd; ++i) {
+                Job j = makeJob(i);
+                j.boundary = envBin[i];
+                if (m.hasEmission()) {
+                    j.src = reinterpret_cast<const float*>(m.emission.data());
+                    j.srcScale = RGB(1 - m.albedo.r, 1 - m.albedo.g, 1 - m.albedo.b);
+                }
+                if (j.boundary.isBlack() && !j.src) continue;
+                jobs.push_back(std::move(j));
+            }
+        }
+        for (const Sun& sun : lights.suns) {
+            if (sun.irradiance.isBlack()) continue;
+            const Vec3 wWorld = normalize(-sun.toSun);
+            Job j;
+            j.w = Rinv * wWorld;
+            j.axis = dominantAxis(j.w);
+            j.sign = j.w[j.axis] > 0 ? 1 : -1;
+            j.boundary = sun.irradiance;
+            j.weight = 1.0;
+            const double half = 0.5 * sun.angularDiameterDeg * kPi / 180.0;
+            double y[16];
+            shEval(wWorld, y);
+            j.shCoef.resize(nc);
+            for (int k = 0; k < nc; ++k)
+                j.shCoef[k] = y[k] * std::pow(m.g, shBand(k)) * capBandFactor(shBand(k), half) / V;
+            const std::vector<double> row = ff.rowForCone(j.w, half);
+            j.binCoef.resize(nb);
+            for (int d = 0; d < nb; ++d) j.binCoef[d] = row[d] / (ff.binWeight(d) * V);
+            jobs.push_back(std::move(j));
+        }
+        Tally t;
+        runJobs(jobs, t);
+        res.injected = Tally::mean(t.injected);
+        recordPass(0, t, tp);
+    }
+
+    // Passes 1..: propagate what the previous pass scattered.
+    int pass = 1;
+    for (;; ++pass) {
+        const double last = res.passes.back().scattered;
+        if (res.injected <= 0 || last <= s.tolerance * res.injected) {
+            res.converged = true;
+            break;
+        }
+        if (pass >= s.maxOrders) break;
+        const auto tp = Clock::now();
+        std::swap(unshot, next);
+        std::fill(next.begin(), next.end(), 0.0f);
+        std::vector<Job> jobs;
+        jobs.reserve(nd);
+        for (int i = 0; i < nd; ++i) {
+            Job j = makeJob(i);
+            j.src = &unshot[size_t(ff.binOfDirection(i)) * N * 3];
+            j.srcScale = m.albedo;
+            jobs.push_back(std::move(j));
+        }
+        Tally t;
+        runJobs(jobs, t);
+        recordPass(pass, t, tp);
+    }
+    res.unshot = res.passes.back().scattered;
+    res.residual = res.injected > 0 ? res.unshot / res.injected : 0.0;
+    {
+        char buf[200];
+        std::snprintf(buf, sizeof buf, "%s after %d passes: residual %.3g (tolerance %.3g)",
+                      res.converged ? "converged" : "stopped at the order cap", int(res.passes.size()), res.residual,
+                      s.tolerance);
+        res.decisions.push_back(buf);
+    }
+    res.seconds = secondsSince(t0);
+    return res;
+}
+
+}  // namespace lpm

@@ -1,0 +1,63 @@
+// Light Propagation Maps (Fattal 2009): a discrete-ordinates solver for the RTE on a
+// voxel grid, by source iteration over scattering orders. See docs/lpm_solver.md for
+// the equations, conventions and the energy bookkeeping.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/medium.h"
+#include "core/sh.h"
+
+namespace lpm {
+
+struct LpmSettings {
+    int directionsPerFace = 4;  ///< n: n x n propagation directions per cube face (6 n^2 in all)
+    int raysPerVoxel = 2;       ///< ray-map rays per voxel along each lateral axis (r^2 per voxel face)
+    int binsPerFace = -1;       ///< unshot bins: -1 auto (1 isotropic bin when g == 0, else 2x2 per face),
+                                ///< 0 = one isotropic bin, b = b x b per face
+    int shOrder = 2;            ///< SH order of the result, 0..3 (forced to 0 when g == 0)
+    double tolerance = 1e-3;    ///< stop when an order's scattered power / injected power < tolerance
+    int maxOrders = 1000;       ///< hard cap on propagation passes
+    std::function<void(const std::string&)> progress;  ///< optional, called once per pass
+};
+
+struct PassStats {
+    int pass = 0;            ///< 0 = external light (scattered power = single scattering)
+    double injected = 0;     ///< power entering this pass (boundary + sources), mean over RGB
+    double absorbed = 0;
+    double escaped = 0;
+    double scattered = 0;    ///< power scattered in this pass: the next pass's source
+    double seconds = 0;
+};
+
+struct LpmResult {
+    int shOrder = 0;  ///< effective SH order of `sh`
+    int coeffs = 1;   ///< (shOrder + 1)^2
+    std::vector<float> sh;  ///< [voxel][coeff][rgb] SH coefficients of S(x, w)
+    std::vector<PassStats> passes;
+    double injected = 0;   ///< external power (environment, suns, emission), mean over RGB
+    double absorbed = 0;   ///< summed over passes
+    double escaped = 0;    ///< summed over passes
+    double unshot = 0;     ///< scattered power of the last pass, not propagated further
+    double residual = 0;   ///< unshot / injected
+    bool converged = false;
+    int directionCount = 0, binCount = 0;
+    std::uint64_t segments = 0;  ///< ray-segment updates performed
+    double seconds = 0;
+    std::vector<std::string> decisions;  ///< what the solver decided and why
+
+    RGB coeff(size_t voxel, int k) const {
+        const float* p = &sh[(voxel * coeffs + k) * 3];
+        return {p[0], p[1], p[2]};
+    }
+};
+
+/// Solves for the SH coefficients of the phase-weighted in-scattered radiance
+/// S(x, w) = Int p(w, w') L(x, w') dw' (w = travel direction) in every voxel.
+/// Throws lpm::Error on invalid input. Results are bit-identical for any thread count.
+LpmResult solveLpm(const Medium& medium, const Lights& lights, const LpmSettings& settings);
+
+}  // namespace lpm

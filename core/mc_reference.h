@@ -1,0 +1,52 @@
+// Monte Carlo reference for the same discrete problem as the LPM solver (same medium,
+// lights and SH basis; no code shared with the LPM sweeps). Unbiased estimators with
+// standard errors:
+//  - SH coefficients of S(x, w) averaged over a voxel (x uniform in the voxel);
+//  - a pinhole-camera image of the volume in front of the environment.
+// Free flights and transmittance use exact regular tracking through the piecewise-
+// constant voxels (delta tracking with a per-voxel majorant equal to sigma_t, which never
+// produces null collisions); next-event estimation to the environment (importance-
+// sampled) and the suns; Russian roulette on the path throughput. See docs/mc_reference.md.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/medium.h"
+
+namespace lpm {
+
+struct McSettings {
+    std::uint64_t seed = 1;
+    int rouletteDepth = 3;  ///< Russian roulette starts after this many collisions
+};
+
+struct McVoxelEstimate {
+    size_t voxel = 0;
+    int samples = 0;
+    std::vector<double> mean;    ///< [coeff][rgb]
+    std::vector<double> stdErr;  ///< [coeff][rgb], standard error of the mean
+};
+
+/// SH coefficients (orders 0..shOrder) of S averaged over each listed voxel.
+std::vector<McVoxelEstimate> mcVoxelSH(const Medium& medium, const Lights& lights, const std::vector<size_t>& voxels,
+                                       int samplesPerVoxel, int shOrder, const McSettings& settings = {});
+
+struct PinholeCamera {
+    Vec3 eye{0, 0, 5}, target{0, 0, 0}, up{0, 1, 0};
+    double fovYDeg = 40;
+    int width = 64, height = 64;
+    /// World-space direction through pixel coordinates (px, py) (py = 0 is the top row).
+    Vec3 rayDirection(double px, double py) const;
+};
+
+struct McImage {
+    int width = 0, height = 0;
+    std::vector<double> mean;    ///< [pixel][rgb], row 0 at the top
+    std::vector<double> stdErr;  ///< [pixel][rgb]
+};
+
+McImage mcRenderImage(const Medium& medium, const Lights& lights, const PinholeCamera& camera, int samplesPerPixel,
+                      const McSettings& settings = {});
+
+}  // namespace lpm

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Install lpmbake's build and test dependencies on Debian 12 (run as root, or with sudo available).
+# Quirks from docs (ecosystem notes): libopenvdb-dev needs libboost-iostreams-dev for its CMake module.
+set -euo pipefail
+PKGS=(build-essential cmake ccache pkg-config
+      libopenvdb-dev libboost-iostreams-dev libtbb-dev
+      libopenimageio-dev openimageio-tools libopencolorio-dev
+      libcli11-dev libgtest-dev)
+missing=()
+for p in "${PKGS[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install_deps: all packages present"; exit 0
+fi
+SUDO=""
+if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
