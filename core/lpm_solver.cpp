@@ -257,15 +257,22 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
     const bool hasEnv = lights.env && lights.env->integral() > 0;
     if (hasEnv) {
         const EnvMap& env = *lights.env;
+        // Sub-pixels fine enough that each direction bin gets >= ~1024 of them; each bin's
+        // radiance is the solid-angle-weighted mean over the sub-pixels it received, so a
+        // constant environment gives exactly constant bins and a one-pixel hot spot lands
+        // in the bin that contains it.
         const double pixels = double(env.width()) * env.height();
-        const int sub = std::clamp(int(std::ceil(std::sqrt(256.0 * nd / pixels))), 1, 16);
-        std::vector<double> acc(size_t(nd) * 3, 0.0);
+        const int sub = std::clamp(int(std::ceil(std::sqrt(1024.0 * nd / pixels))), 1, 256);
+        std::vector<double> acc(size_t(nd) * 4, 0.0);
         env.forEachSubPixel(sub, [&](const Vec3& toward, double omega, const RGB& L) {
             const int i = quad.indexOf(Rinv * (-toward));
-            for (int c = 0; c < 3; ++c) acc[size_t(i) * 3 + c] += L[c] * omega;
+            for (int c = 0; c < 3; ++c) acc[size_t(i) * 4 + c] += L[c] * omega;
+            acc[size_t(i) * 4 + 3] += omega;
         });
-        for (int i = 0; i < nd; ++i)
-            for (int c = 0; c < 3; ++c) envBin[i][c] = float(acc[size_t(i) * 3 + c] / quad.weight(i));
+        for (int i = 0; i < nd; ++i) {
+            const double om = acc[size_t(i) * 4 + 3];
+            for (int c = 0; c < 3; ++c) envBin[i][c] = om > 0 ? float(acc[size_t(i) * 4 + c] / om) : 0.0f;
+        }
     } else {
         res.decisions.push_back("no environment pass: no environment light");
     }

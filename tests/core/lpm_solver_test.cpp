@@ -1,2 +1,257 @@
+// Tests of the LPM solver: energy balance, white furnace, single scattering against
+// closed forms, numerical limits, thread-count determinism.
+#include "core/lpm_solver.h"
+
 #include <gtest/gtest.h>
-TEST(Placeholder, Builds) { SUCCEED(); }
+
+#include <cmath>
+#include <cstring>
+
+#include "core/parallel.h"
+#include "core/phase.h"
+#include "test_scenes.h"
+
+using namespace lpm;
+using namespace lpm::test;
+
+namespace {
+
+double band0(const LpmResult& r, size_t vox, int c = 0) { return r.coeff(vox, 0)[c] * kY00; }
+
+bool allFinite(const LpmResult& r) {
+    for (float v : r.sh)
+        if (!std::isfinite(v)) return false;
+    return true;
+}
+
+}  // namespace
+
+TEST(LpmSolver, EnergyBalanceEnvironmentAndSun) {
+    Medium m = makeVolume(VolumeKind::Cloud, 20, 4.0);
+    m.albedo = RGB(0.9f, 0.8f, 0.5f);
+    m.g = 0.5;
+    const EnvMap sky = makeSky(64);
+    Lights lights;
+    lights.env = &sky;
+    lights.suns.push_back({normalize(Vec3{0.3, 1, 0.2}), RGB(5, 5, 4), 0.5});
+    LpmSettings s;
+    s.tolerance = 1e-4;
+    const LpmResult r = solveLpm(m, lights, s);
+    ASSERT_TRUE(r.converged);
+    const double out = r.absorbed + r.escaped + r.unshot;
+    EXPECT_NEAR(out / r.injected, 1.0, 1e-3) << "injected " << r.injected << " absorbed " << r.absorbed
+                                               << " escaped " << r.escaped << " unshot " << r.unshot;
+    // Each pass's scattered power is the next pass's injected power.
+    for (size_t k = 1; k < r.passes.size(); ++k)
+        EXPECT_NEAR(r.passes[k].injected, r.passes[k - 1].scattered, 1e-4 * r.passes[k - 1].scattered + 1e-12);
+    // Each order carries less energy than the one before.
+    for (size_t k = 1; k < r.passes.size(); ++k) EXPECT_LE(r.passes[k].scattered, r.passes[k - 1].scattered);
+    EXPECT_TRUE(allFinite(r));
+}
+
+TEST(LpmSolver, EnergyBalanceWithEmission) {
+    Medium m = makeVolume(VolumeKind::Plume, 16, 3.0);
+    m.albedo = RGB(0.7f);
+    m.emission.assign(m.voxelCount(), RGB(0.f));
+    for (size_t i = 0; i < m.voxelCount(); ++i)
+        if (m.sigmaT[i] > 0.1f) m.emission[i] = RGB(2.0f, 1.0f, 0.3f);
+    const LpmResult r = solveLpm(m, Lights{}, LpmSettings{});
+    ASSERT_GT(r.injected, 0);
+    // Emitted power: 4 pi * sum sigma_a L_e V (mean over RGB).
+    double emitted = 0;
+    for (size_t i = 0; i < m.voxelCount(); ++i)
+        emitted += kFourPi * m.sigmaT[i] * (1 - 0.7) * m.emission[i].average() * m.voxelVolume();
+    EXPECT_NEAR(r.injected / emitted, 1.0, 1e-4);
+    EXPECT_NEAR((r.absorbed + r.escaped + r.unshot) / r.injected, 1.0, 1e-3);
+}
+
+class WhiteFurnace : public ::testing::TestWithParam<double> {};
+
+TEST_P(WhiteFurnace, SEqualsL0Everywhere) {
+    // Albedo 1 under a uniform environment: L = L0 everywhere, so S = L0 for any phase.
+    Medium m = makeVolume(VolumeKind::Cloud, 24, 1.0);
+    scaleToMaxOpticalDepth(m, 5.0);
+    m.albedo = RGB(1.0f);
+    m.g = GetParam();
+    const float L0 = 0.75f;
+    const EnvMap env = EnvMap::constant(RGB(L0));
+    Lights lights;
+    lights.env = &env;
+    LpmSettings s;
+    s.tolerance = 1e-5;
+    const LpmResult r = solveLpm(m, lights, s);
+    ASSERT_TRUE(r.converged) << r.residual;
+    double worst0 = 0, worstHigh = 0;
+    for (size_t v = 0; v < m.voxelCount(); ++v) {
+        if (m.sigmaT[v] <= 0) continue;
+        worst0 = std::max(worst0, std::fabs(band0(r, v) / L0 - 1));
+        for (int k = 1; k < r.coeffs; ++k) worstHigh = std::max(worstHigh, double(std::fabs(r.coeff(v, k)[0])) * kY00 / L0);
+    }
+    EXPECT_LT(worst0, 5e-3) << "worst band-0 deviation, g = " << m.g;
+    EXPECT_LT(worstHigh, 5e-3) << "worst higher-band coefficient, g = " << m.g;
+}
+INSTANTIATE_TEST_SUITE_P(G, WhiteFurnace, ::testing::Values(0.0, 0.7));
+
+// Voxel average over z in [z0, z0 + h] of exp(-sigma (Z - z) / mu): single scattering
+// below the top face Z of a homogeneous slab lit by a sun at cosine mu.
+static double slabAverage(double sigma, double Z, double z0, double h, double mu) {
+    const double k = sigma / mu;
+    return std::exp(-k * (Z - z0 - h)) * (1 - std::exp(-k * h)) / (k * h);
+}
+
+TEST(LpmSolver, SingleScatteringSlabNormalSun) {
+    // A slab filling the whole lateral extent lit straight from above: only pass 0
+    // (single scattering), compared with the closed form, per SH coefficient.
+    const double sigma = 0.3;
+    Medium m = makeBox(8, 24, 8, sigma);
+    m.g = 0.6;
+    m.albedo = RGB(0.8f);
+    Lights lights;
+    lights.suns.push_back({Vec3{0, 1, 0}, RGB(2.0f), 0.0});
+    LpmSettings s;
+    s.maxOrders = 1;
+    s.shOrder = 3;
+    const LpmResult r = solveLpm(m, lights, s);
+    double y[16];
+    shEval(Vec3{0, -1, 0}, y);
+    for (int iy = 0; iy < m.ny; ++iy) {
+        const double expect = 2.0 * slabAverage(sigma, m.ny, iy, 1.0, 1.0);
+        const size_t v = m.index(3, iy, 4);
+        for (int k = 0; k < 16; ++k) {
+            const double e = expect * y[k] * std::pow(m.g, shBand(k));
+            EXPECT_NEAR(r.coeff(v, k)[0], e, 1e-4 * expect + 1e-7) << "y " << iy << " k " << k;
+        }
+    }
+}
+
+// Exact voxel-averaged transmittance toward the sun through a piecewise-constant box
+// (independent fine quadrature + analytic ray-box distance; homogeneous box only).
+static double boxTransmittanceAverage(const Medium& m, double sigma, int ix, int iy, int iz, const Vec3& toSun, int q) {
+    double acc = 0;
+    const double ext[3] = {m.nx * m.voxelSize.x, m.ny * m.voxelSize.y, m.nz * m.voxelSize.z};
+    for (int a = 0; a < q; ++a)
+        for (int b = 0; b < q; ++b)
+            for (int c = 0; c < q; ++c) {
+                const Vec3 p{(ix + (a + 0.5) / q) * m.voxelSize.x, (iy + (b + 0.5) / q) * m.voxelSize.y,
+                             (iz + (c + 0.5) / q) * m.voxelSize.z};
+                double t = 1e30;
+                for (int k = 0; k < 3; ++k) {
+                    if (toSun[k] > 0) t = std::min(t, (ext[k] - p[k]) / toSun[k]);
+                    if (toSun[k] < 0) t = std::min(t, -p[k] / toSun[k]);
+                }
+                acc += std::exp(-sigma * t);
+            }
+    return acc / (q * q * q);
+}
+
+// Relative RMS and max error of single scattering in an oblique-sun box, against the exact
+// voxel average, for ray-map resolution r.
+static void obliqueBoxError(int r, double& rms, double& worst) {
+    const double sigma = 0.25;
+    Medium m = makeBox(12, 10, 14, sigma);
+    m.voxelSize = {1.0, 0.7, 1.3};
+    m.albedo = RGB(0.5f);
+    const Vec3 toSun = normalize(Vec3{0.45, 1.0, -0.3});
+    Lights lights;
+    lights.suns.push_back({toSun, RGB(1.0f), 0.0});
+    LpmSettings s;
+    s.maxOrders = 1;
+    s.raysPerVoxel = r;
+    const LpmResult res = solveLpm(m, lights, s);
+    double sumSq = 0;
+    worst = 0;
+    int n = 0;
+    for (int iz = 0; iz < m.nz; iz += 1)
+        for (int iy = 0; iy < m.ny; iy += 1)
+            for (int ix = 0; ix < m.nx; ix += 1) {
+                // Direction average of S from a sun: E T / (4 pi).
+                const double expect = boxTransmittanceAverage(m, sigma, ix, iy, iz, toSun, 8) / kFourPi;
+                const double rel = std::fabs(band0(res, m.index(ix, iy, iz)) / expect - 1);
+                worst = std::max(worst, rel);
+                sumSq += rel * rel;
+                ++n;
+            }
+    rms = std::sqrt(sumSq / n);
+}
+
+TEST(LpmSolver, SingleScatteringBoxObliqueSunConvergesInRayDensity) {
+    // Oblique sun into a homogeneous box with non-cubic voxels: light enters through the
+    // top and the sides. The ray map samples each voxel with r^2 lines, so the error of
+    // the voxel-averaged transmittance (worst at the box's edges, where it has a kink)
+    // falls like 1/r^2. Measured: r=2 rms 2.4%, r=8 rms 0.16%.
+    double rms2, worst2, rms8, worst8;
+    obliqueBoxError(2, rms2, worst2);
+    obliqueBoxError(8, rms8, worst8);
+    EXPECT_LT(rms2, 0.03);
+    EXPECT_LT(rms8, 0.003);
+    EXPECT_LT(worst8, 0.015);
+    EXPECT_GT(rms2 / rms8, 8.0);
+}
+
+TEST(LpmSolver, VacuumAndOpaqueStayFinite) {
+    const EnvMap env = EnvMap::constant(RGB(1.0f));
+    Lights lights;
+    lights.env = &env;
+    lights.suns.push_back({Vec3{0, 1, 0}, RGB(1e6f), 0.0});
+    for (double sigma : {0.0, 1e-8, 1e4}) {
+        Medium m = makeBox(6, 6, 6, sigma);
+        m.albedo = RGB(0.99f);
+        m.g = 0.3;
+        const LpmResult r = solveLpm(m, lights, LpmSettings{});
+        EXPECT_TRUE(allFinite(r)) << sigma;
+        if (sigma == 0.0) {
+            // Nothing scatters, but S is still the phase-weighted incident radiance.
+            // Direction average of S = mean incident radiance = L_env + E / (4 pi).
+            EXPECT_NEAR(band0(r, m.index(3, 3, 3)) / (1.0 + 1e6 / kFourPi), 1.0, 1e-4);
+        }
+        if (sigma == 1e4) {
+            // Interior voxels of an opaque block see (almost) nothing: the step scheme's
+            // leak through a voxel of optical depth tau is O(1/tau) per voxel.
+            const double surface = band0(r, m.index(3, 5, 3)), inner = band0(r, m.index(3, 2, 3));
+            EXPECT_GT(surface, 1.0);
+            EXPECT_LT(inner, 1e-6 * surface);
+        }
+    }
+}
+
+TEST(LpmSolver, IsotropicPhaseDecidesShOrderZero) {
+    Medium m = makeBox(4, 4, 4, 0.5);
+    m.g = 0.0;
+    const EnvMap env = EnvMap::constant(RGB(1.0f));
+    Lights lights;
+    lights.env = &env;
+    LpmSettings s;
+    s.shOrder = 3;
+    const LpmResult r = solveLpm(m, lights, s);
+    EXPECT_EQ(r.shOrder, 0);
+    EXPECT_EQ(r.binCount, 1);
+    EXPECT_FALSE(r.decisions.empty());
+}
+
+TEST(LpmSolver, BitIdenticalForAnyThreadCount) {
+    Medium m = makeVolume(VolumeKind::Cloud, 16, 3.0);
+    m.g = 0.5;
+    m.albedo = RGB(0.9f);
+    const EnvMap sky = makeSky(64);
+    Lights lights;
+    lights.env = &sky;
+    lights.suns.push_back({normalize(Vec3{1, 1, 0}), RGB(3.0f), 0.0});
+    std::vector<float> ref;
+    for (int threads : {1, 2, 16}) {
+        ThreadLimit limit(threads);
+        const LpmResult r = solveLpm(m, lights, LpmSettings{});
+        if (ref.empty())
+            ref = r.sh;
+        else
+            EXPECT_EQ(0, std::memcmp(ref.data(), r.sh.data(), ref.size() * sizeof(float))) << threads << " threads";
+    }
+}
+
+TEST(LpmSolver, RejectsBadSettings) {
+    Medium m = makeBox(2, 2, 2, 1.0);
+    LpmSettings s;
+    s.raysPerVoxel = 0;
+    EXPECT_THROW(solveLpm(m, Lights{}, s), Error);
+    m.g = 1.0;
+    EXPECT_THROW(solveLpm(m, Lights{}, LpmSettings{}), Error);
+}
