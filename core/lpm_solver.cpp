@@ -49,6 +49,7 @@ struct Job {
     double weight = 1;    // solid angle of the direction bin (1 for suns)
     const float* src = nullptr;  // per-voxel RGB radiance feeding the source, or null
     RGB srcScale;         // Q_c = sigma_t * srcScale_c * src_c
+    double offsetU = 0.5, offsetV = 0.5;  // ray-lattice offset within a lattice cell, [0, 1)
     std::vector<double> shCoef;   // per SH coefficient: multiplies Phi (includes 1/V)
     std::vector<double> binCoef;  // per unshot bin: multiplies Phi (includes 1/V)
 };
@@ -93,8 +94,8 @@ void sweep(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
     double inj[3] = {0, 0, 0}, esc[3] = {0, 0, 0}, abs_[3] = {0, 0, 0}, sca[3] = {0, 0, 0};
     std::uint64_t segs = 0;
     for (size_t k = 0; k < nRays; ++k) {
-        pu[k] = (double(k % (size_t(r) * nu)) + 0.5) / r;
-        pv[k] = (double(k / (size_t(r) * nu)) + 0.5) / r;
+        pu[k] = (double(k % (size_t(r) * nu)) + job.offsetU) / r;
+        pv[k] = (double(k / (size_t(r) * nu)) + job.offsetV) / r;
         for (int c = 0; c < 3; ++c) {
             L[k * 3 + c] = bnd[c];
             inj[c] += bnd[c];
@@ -285,6 +286,11 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
         j.axis = CubeQuadrature::faceAxis(quad.face(i));
         j.sign = CubeQuadrature::faceSign(quad.face(i));
         j.weight = quad.weight(i);
+        // A different lattice offset per direction (R2 low-discrepancy sequence) keeps
+        // the ray maps of neighbouring directions from aliasing with the voxel grid in
+        // the same way; coverage stays exact for any offset.
+        j.offsetU = std::fmod(0.5 + 0.7548776662466927 * (i + 1), 1.0);
+        j.offsetV = std::fmod(0.5 + 0.5698402909980532 * (i + 1), 1.0);
         j.shCoef.resize(nc);
         for (int k = 0; k < nc; ++k) j.shCoef[k] = quad.weight(i) * ybar[size_t(i) * nc + k] / V;
         j.binCoef.resize(nb);
