@@ -188,6 +188,69 @@ TEST(LpmSolver, SingleScatteringBoxObliqueSunConvergesInRayDensity) {
     EXPECT_GT(rms2 / rms8, 8.0);
 }
 
+TEST(LpmSolver, SingleScatteringHomogeneousSphere) {
+    // A homogeneous sphere (voxels whose centre lies inside), sun from an oblique
+    // direction, single scattering only. Expected: the voxel average of
+    // E exp(-tau(x -> sun)) / (4 pi), tau integrated by fine midpoint marching through
+    // the voxelised sphere (independent of the sweep code); and, for voxels well inside,
+    // the smooth-sphere closed form exp(-sigma * chord) within the staircase error.
+    // Measured: 0.38% RMS against the voxelised sphere, 5.1% worst against the smooth one.
+    const int n = 24;
+    const double sigma = 0.15, R = 10.0, c0 = n / 2.0;
+    Medium m = makeBox(n, n, n, 0.0);
+    auto inside = [&](double x, double y, double z) {
+        return (x - c0) * (x - c0) + (y - c0) * (y - c0) + (z - c0) * (z - c0) < R * R;
+    };
+    for (int z = 0; z < n; ++z)
+        for (int y = 0; y < n; ++y)
+            for (int x = 0; x < n; ++x)
+                if (inside(x + 0.5, y + 0.5, z + 0.5)) m.sigmaT[m.index(x, y, z)] = float(sigma);
+    const Vec3 toSun = normalize(Vec3{-0.4, 1.0, 0.25});
+    Lights lights;
+    lights.suns.push_back({toSun, RGB(1.0f), 0.0});
+    LpmSettings s;
+    s.maxOrders = 1;
+    s.raysPerVoxel = 4;
+    const LpmResult r = solveLpm(m, lights, s);
+    auto sigmaAt = [&](const Vec3& p) {
+        const int x = int(std::floor(p.x)), y = int(std::floor(p.y)), z = int(std::floor(p.z));
+        if (x < 0 || y < 0 || z < 0 || x >= n || y >= n || z >= n) return 0.0;
+        return double(m.sigmaT[m.index(x, y, z)]);
+    };
+    double sumSq = 0, worstSmooth = 0;
+    int count = 0;
+    for (int z = 2; z < n; z += 3)
+        for (int y = 2; y < n; y += 3)
+            for (int x = 2; x < n; x += 3) {
+                if (m.sigmaT[m.index(x, y, z)] == 0) continue;
+                double avg = 0, smooth = 0;
+                const int q = 3;
+                for (int a = 0; a < q; ++a)
+                    for (int b = 0; b < q; ++b)
+                        for (int c = 0; c < q; ++c) {
+                            const Vec3 p{x + (a + 0.5) / q, y + (b + 0.5) / q, z + (c + 0.5) / q};
+                            double tau = 0;
+                            const double dt = 0.01;
+                            for (double t = 0.5 * dt; t < 2 * n; t += dt) tau += sigmaAt(p + toSun * t) * dt;
+                            avg += std::exp(-tau);
+                            // Smooth sphere: chord from p to the surface along toSun.
+                            const Vec3 o = p - Vec3{c0, c0, c0};
+                            const double bq = dot(o, toSun), cq = dot(o, o) - R * R;
+                            smooth += std::exp(-sigma * (-bq + std::sqrt(std::max(0.0, bq * bq - cq))));
+                        }
+                avg /= q * q * q;
+                smooth /= q * q * q;
+                const double got = band0(r, m.index(x, y, z)) * kFourPi;
+                sumSq += (got / avg - 1) * (got / avg - 1);
+                ++count;
+                const Vec3 cc{x + 0.5 - c0, y + 0.5 - c0, z + 0.5 - c0};
+                if (length(cc) < R - 3) worstSmooth = std::max(worstSmooth, std::fabs(got / smooth - 1));
+            }
+    ASSERT_GT(count, 50);
+    EXPECT_LT(std::sqrt(sumSq / count), 0.01) << "against the voxelised sphere";
+    EXPECT_LT(worstSmooth, 0.07) << "against the smooth sphere (staircase surface)";
+}
+
 TEST(LpmSolver, VacuumAndOpaqueStayFinite) {
     const EnvMap env = EnvMap::constant(RGB(1.0f));
     Lights lights;
