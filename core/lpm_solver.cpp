@@ -307,7 +307,7 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
 
     // Runs jobs in batches: sweeps in parallel (one buffer per job), then folds the batch
     // in job order, in parallel over voxels. Thread-count independent by construction.
-    auto runJobs = [&](const std::vector<Job>& jobs, Tally& total) {
+    auto runJobs = [&](const std::vector<Job>& jobs, Tally& total, bool depositSh, std::vector<float>& out) {
         const size_t batch = std::min(jobs.size(), std::min<size_t>(maxBatch, 16));
         std::vector<std::vector<float>> phi(batch);
         for (size_t b0 = 0; b0 < jobs.size(); b0 += batch) {
@@ -327,15 +327,17 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
                     for (size_t x = vb; x < ve; ++x) {
                         const float p[3] = {ph[x * 3], ph[x * 3 + 1], ph[x * 3 + 2]};
                         if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
-                        float* out = &res.sh[x * nc * 3];
-                        for (int k = 0; k < nc; ++k) {
-                            const double a = job.shCoef[k];
-                            if (a == 0) continue;
-                            for (int c = 0; c < 3; ++c) out[k * 3 + c] += float(a * p[c]);
+                        if (depositSh) {
+                            float* o = &res.sh[x * nc * 3];
+                            for (int k = 0; k < nc; ++k) {
+                                const double a = job.shCoef[k];
+                                if (a == 0) continue;
+                                for (int c = 0; c < 3; ++c) o[k * 3 + c] += float(a * p[c]);
+                            }
                         }
                         for (int d = 0; d < nb; ++d) {
                             const double bc = job.binCoef[d];
-                            float* un = &next[(size_t(d) * N + x) * 3];
+                            float* un = &out[(size_t(d) * N + x) * 3];
                             for (int c = 0; c < 3; ++c) un[c] += float(bc * p[c]);
                         }
                     }
@@ -344,17 +346,20 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
         }
     };
 
-    auto recordPass = [&](int pass, const Tally& t, Clock::time_point tp) {
+    auto recordPass = [&](int pass, const Tally& t, Clock::time_point tp, bool physical = true) {
         PassStats ps;
         ps.pass = pass;
+        ps.krylov = !physical;
         ps.injected = Tally::mean(t.injected);
         ps.absorbed = Tally::mean(t.absorbed);
         ps.escaped = Tally::mean(t.escaped);
         ps.scattered = Tally::mean(t.scattered);
         ps.seconds = secondsSince(tp);
         res.passes.push_back(ps);
-        res.absorbed += ps.absorbed;
-        res.escaped += ps.escaped;
+        if (physical) {
+            res.absorbed += ps.absorbed;
+            res.escaped += ps.escaped;
+        }
         res.segments += t.segments;
         if (s.progress) {
             char buf[200];
@@ -401,34 +406,190 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
             jobs.push_back(std::move(j));
         }
         Tally t;
-        runJobs(jobs, t);
+        runJobs(jobs, t, true, next);
         res.injected = Tally::mean(t.injected);
         recordPass(0, t, tp);
     }
 
-    // Passes 1..: propagate what the previous pass scattered.
-    int pass = 1;
-    for (;; ++pass) {
-        const double last = res.passes.back().scattered;
-        if (res.injected <= 0 || last <= s.tolerance * res.injected) {
-            res.converged = true;
-            break;
-        }
-        if (pass >= s.maxOrders) break;
-        const auto tp = Clock::now();
-        std::swap(unshot, next);
-        std::fill(next.begin(), next.end(), 0.0f);
+    // Jobs of a propagation pass whose source is `src` ([bin][voxel][rgb]).
+    auto sourceJobs = [&](const std::vector<float>& src) {
         std::vector<Job> jobs;
         jobs.reserve(nd);
         for (int i = 0; i < nd; ++i) {
             Job j = makeJob(i);
-            j.src = &unshot[size_t(ff.binOfDirection(i)) * N * 3];
+            j.src = &src[size_t(ff.binOfDirection(i)) * N * 3];
             j.srcScale = m.albedo;
             jobs.push_back(std::move(j));
         }
+        return jobs;
+    };
+
+    // Passes 1..: propagate what the previous pass scattered (source iteration). When
+    // the per-pass energy ratio shows that plain iteration would need many more passes
+    // (albedo near 1, thick media), switch to GMRES on the remaining sum.
+    int pass = 1;
+    bool useKrylov = false;
+    for (;; ++pass) {
+        // Stop on the estimated energy still to come: the last pass's scattered power
+        // times the geometric tail rho / (1 - rho) of the per-pass ratio (at least 1x).
+        const double last = res.passes.back().scattered;
+        const double prevP = res.passes.size() >= 2 ? res.passes[res.passes.size() - 2].scattered : 0.0;
+        const double ratio = prevP > 0 ? last / prevP : 0.0;
+        const double tail = last * std::max(1.0, ratio < 1.0 ? ratio / (1.0 - ratio) : 1e9);
+        if (res.injected <= 0 || tail <= s.tolerance * res.injected) {
+            res.converged = true;
+            break;
+        }
+        if (pass >= s.maxOrders) break;
+        if (s.krylov && pass >= 4) {
+            const double prev = res.passes[res.passes.size() - 2].scattered;
+            const double rho = prev > 0 ? last / prev : 0.0;
+            if (rho > 0.8 && rho < 1.0) {
+                const double more = std::log(s.tolerance * res.injected / last) / std::log(rho);
+                if (more > s.krylovAfter) {
+                    char buf[240];
+                    std::snprintf(buf, sizeof buf,
+                                  "Krylov (GMRES) acceleration after pass %d: energy ratio per pass %.4f, plain "
+                                  "source iteration would need about %.0f more passes",
+                                  pass - 1, rho, more);
+                    res.decisions.push_back(buf);
+                    useKrylov = true;
+                    break;
+                }
+            }
+        }
+        const auto tp = Clock::now();
+        std::swap(unshot, next);
+        std::fill(next.begin(), next.end(), 0.0f);
         Tally t;
-        runJobs(jobs, t);
+        runJobs(sourceJobs(unshot), t, true, next);
         recordPass(pass, t, tp);
+    }
+
+    if (useKrylov) {
+        // Remaining sum X = sum_{j >= 1} U_{k+j} solves (I - K) X = B, B = `next`, where K
+        // is one propagation pass (source -> next unshot). Restarted GMRES with modified
+        // Gram-Schmidt in the inner product <a, b> = sum_d w_d a.b; every reduction is
+        // chunked in a fixed order, so the result stays thread-count independent.
+        const size_t len = next.size();
+        std::vector<double> binW(len);
+        for (int d = 0; d < nb; ++d)
+            std::fill(binW.begin() + size_t(d) * N * 3, binW.begin() + size_t(d + 1) * N * 3, ff.binWeight(d));
+        auto dotW = [&](const std::vector<float>& a, const std::vector<float>& b) {
+            const size_t chunk = 1 << 16;
+            std::vector<double> part((len + chunk - 1) / chunk, 0.0);
+            parallelForChunks(len, chunk, [&](size_t b0, size_t e0) {
+                double acc = 0;
+                for (size_t i = b0; i < e0; ++i) acc += binW[i] * double(a[i]) * double(b[i]);
+                part[b0 / chunk] = acc;
+            });
+            double sum = 0;
+            for (double v : part) sum += v;
+            return sum;
+        };
+        auto axpy = [&](std::vector<float>& y, double a, const std::vector<float>& x) {
+            parallelForChunks(len, 1 << 16, [&](size_t b0, size_t e0) {
+                for (size_t i = b0; i < e0; ++i) y[i] = float(double(y[i]) + a * double(x[i]));
+            });
+        };
+        // A v = v - K v.
+        std::vector<float> kv(len);
+        auto apply = [&](const std::vector<float>& v, std::vector<float>& outv) {
+            const auto tp = Clock::now();
+            std::fill(kv.begin(), kv.end(), 0.0f);
+            Tally t;
+            runJobs(sourceJobs(v), t, false, kv);
+            recordPass(pass++, t, tp, false);
+            parallelForChunks(len, 1 << 16, [&](size_t b0, size_t e0) {
+                for (size_t i = b0; i < e0; ++i) outv[i] = v[i] - kv[i];
+            });
+        };
+        const std::vector<float> B = next;
+        const double bNorm = std::sqrt(dotW(B, B));
+        // Krylov vectors are the big memory cost: cap their number by the memory budget.
+        const size_t vecBytes = len * sizeof(float);
+        const int restart = int(std::clamp<size_t>((size_t(2) << 30) / std::max<size_t>(1, vecBytes), 4,
+                                                   size_t(std::max(4, s.krylovRestart))));
+        const double target = s.tolerance * 0.1 * bNorm;
+        std::vector<float> X(len, 0.0f), r = B;  // X0 = 0, r0 = B
+        std::vector<std::vector<float>> basis;
+        std::vector<float> w(len);
+        double rNorm = bNorm;
+        int matvecs = 0;
+        while (rNorm > target && pass < s.maxOrders) {
+            basis.assign(1, r);
+            for (float& x : basis[0]) x = float(x / rNorm);
+            std::vector<std::vector<double>> H(restart + 1, std::vector<double>(restart, 0.0));
+            std::vector<double> cs(restart), sn(restart), g(restart + 1, 0.0);
+            g[0] = rNorm;
+            int k = 0;
+            for (; k < restart && pass < s.maxOrders; ++k) {
+                apply(basis[k], w);
+                ++matvecs;
+                for (int i = 0; i <= k; ++i) {
+                    H[i][k] = dotW(w, basis[i]);
+                    axpy(w, -H[i][k], basis[i]);
+                }
+                H[k + 1][k] = std::sqrt(dotW(w, w));
+                for (int i = 0; i < k; ++i) {  // previous Givens rotations
+                    const double t = cs[i] * H[i][k] + sn[i] * H[i + 1][k];
+                    H[i + 1][k] = -sn[i] * H[i][k] + cs[i] * H[i + 1][k];
+                    H[i][k] = t;
+                }
+                const double den = std::hypot(H[k][k], H[k + 1][k]);
+                cs[k] = den > 0 ? H[k][k] / den : 1.0;
+                sn[k] = den > 0 ? H[k + 1][k] / den : 0.0;
+                const double hk1 = H[k + 1][k];
+                H[k][k] = cs[k] * H[k][k] + sn[k] * hk1;
+                H[k + 1][k] = 0;
+                g[k + 1] = -sn[k] * g[k];
+                g[k] = cs[k] * g[k];
+                if (std::fabs(g[k + 1]) <= target || hk1 <= 1e-30 * bNorm) {
+                    ++k;
+                    break;
+                }
+                basis.push_back(w);
+                for (float& x : basis.back()) x = float(x / hk1);
+            }
+            // Solve the triangular system and update X.
+            std::vector<double> y(k, 0.0);
+            for (int i = k - 1; i >= 0; --i) {
+                double acc = g[i];
+                for (int j = i + 1; j < k; ++j) acc -= H[i][j] * y[j];
+                y[i] = H[i][i] != 0 ? acc / H[i][i] : 0.0;
+            }
+            for (int i = 0; i < k; ++i) axpy(X, y[i], basis[i]);
+            // True residual r = B - A X (one more pass; keeps restarts honest).
+            apply(X, w);
+            ++matvecs;
+            parallelForChunks(len, 1 << 16, [&](size_t b0, size_t e0) {
+                for (size_t i = b0; i < e0; ++i) r[i] = B[i] - w[i];
+            });
+            rNorm = std::sqrt(dotW(r, r));
+        }
+        // Negative round-off in X would act as a negative source: clamp it.
+        for (float& x : X) x = std::max(0.0f, x);
+        // Final physical pass: deposit S from the whole remaining sum.
+        const auto tp = Clock::now();
+        std::fill(next.begin(), next.end(), 0.0f);
+        Tally t;
+        runJobs(sourceJobs(X), t, true, next);
+        recordPass(pass, t, tp);
+        // Unshot: the source power that X fails to account for, |B + K X - X| (radiance
+        // per bin) times sigma_s V w_d, mean over RGB.
+        double miss = 0;
+        for (int d = 0; d < nb; ++d)
+            for (size_t x = 0; x < N; ++x)
+                for (int c = 0; c < 3; ++c) {
+                    const size_t i = (size_t(d) * N + x) * 3 + c;
+                    miss += std::fabs(double(B[i]) + next[i] - X[i]) * m.sigmaT[x] * m.albedo[c] * ff.binWeight(d) * V;
+                }
+        res.passes.back().scattered = miss / 3.0;
+        char buf[200];
+        std::snprintf(buf, sizeof buf, "GMRES: %d passes (restart %d), relative residual %.3g", matvecs, restart,
+                      bNorm > 0 ? rNorm / bNorm : 0.0);
+        res.decisions.push_back(buf);
+        res.converged = rNorm <= target;
     }
     res.unshot = res.passes.back().scattered;
     res.residual = res.injected > 0 ? res.unshot / res.injected : 0.0;

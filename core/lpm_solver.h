@@ -21,6 +21,9 @@ struct LpmSettings {
     int shOrder = 2;            ///< SH order of the result, 0..3 (forced to 0 when g == 0)
     double tolerance = 1e-3;    ///< stop when an order's scattered power / injected power < tolerance
     int maxOrders = 1000;       ///< hard cap on propagation passes
+    bool krylov = true;         ///< allow GMRES acceleration when source iteration would be slow
+    int krylovAfter = 25;       ///< switch when plain iteration would need more than this many passes
+    int krylovRestart = 40;     ///< GMRES restart length (capped by a 2 GiB budget for Krylov vectors)
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass
 };
 
@@ -31,6 +34,7 @@ struct PassStats {
     double escaped = 0;
     double scattered = 0;    ///< power scattered in this pass: the next pass's source
     double seconds = 0;
+    bool krylov = false;     ///< a GMRES matrix-vector pass (not a physical scattering order)
 };
 
 struct LpmResult {
