@@ -224,10 +224,16 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
     res.coeffs = shCount(res.shOrder);
     int binsPerFace = s.binsPerFace;
     if (binsPerFace < 0) {
-        binsPerFace = m.g == 0.0 ? 0 : 2;
+        // Bins must nest the direction texels (b divides n), or a direction straddling a
+        // bin edge is given to one side and the scattered light is skewed.
+        binsPerFace = m.g == 0.0 ? 0 : (s.directionsPerFace % 2 == 0 ? 2 : 1);
         res.decisions.push_back(m.g == 0.0 ? "one isotropic unshot bin: g = 0"
-                                           : "2x2 unshot bins per cube face (24): g = " + std::to_string(m.g));
+                                           : std::to_string(binsPerFace) + "x" + std::to_string(binsPerFace) +
+                                                 " unshot bins per cube face: g = " + std::to_string(m.g));
     }
+    if (binsPerFace > 0 && s.directionsPerFace % binsPerFace != 0)
+        throw Error("LPM", "bins per face (" + std::to_string(binsPerFace) + ") must divide directions per face (" +
+                               std::to_string(s.directionsPerFace) + ")");
     const CubeQuadrature quad(s.directionsPerFace);
     std::unique_ptr<CubeQuadrature> binQuad;
     if (binsPerFace > 0) binQuad.reset(new CubeQuadrature(binsPerFace));

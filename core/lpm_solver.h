@@ -16,10 +16,11 @@ namespace lpm {
 struct LpmSettings {
     int directionsPerFace = 4;  ///< n: n x n propagation directions per cube face (6 n^2 in all)
     int raysPerVoxel = 2;       ///< ray-map rays per voxel along each lateral axis (r^2 per voxel face)
-    int binsPerFace = -1;       ///< unshot bins: -1 auto (1 isotropic bin when g == 0, else 2x2 per face),
+    int binsPerFace = -1;       ///< unshot bins: -1 auto (1 isotropic bin when g == 0, else 2x2 per face
+                                ///< when n is even, 1 per face when odd); must divide n;
                                 ///< 0 = one isotropic bin, b = b x b per face
     int shOrder = 2;            ///< SH order of the result, 0..3 (forced to 0 when g == 0)
-    double tolerance = 1e-3;    ///< stop when an order's scattered power / injected power < tolerance
+    double tolerance = 1e-3;    ///< stop when the estimated scattered power still to come / injected < tolerance
     int maxOrders = 1000;       ///< hard cap on propagation passes
     bool krylov = true;         ///< allow GMRES acceleration when source iteration would be slow
     int krylovAfter = 25;       ///< switch when plain iteration would need more than this many passes
