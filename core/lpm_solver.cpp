@@ -191,9 +191,63 @@ void sweep(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
 
 }  // namespace
 
+namespace {
+// Splits every voxel into k^3 copies of itself: the same piecewise-constant medium.
+Medium subdivided(const Medium& m, int k) {
+    Medium f = m;
+    f.nx = m.nx * k;
+    f.ny = m.ny * k;
+    f.nz = m.nz * k;
+    f.voxelSize = m.voxelSize / double(k);
+    f.sigmaT.assign(f.voxelCount(), 0.0f);
+    if (m.hasEmission()) f.emission.assign(f.voxelCount(), RGB(0.f));
+    for (int z = 0; z < f.nz; ++z)
+        for (int y = 0; y < f.ny; ++y)
+            for (int x = 0; x < f.nx; ++x) {
+                const size_t src = m.index(x / k, y / k, z / k), dst = f.index(x, y, z);
+                f.sigmaT[dst] = m.sigmaT[src];
+                if (m.hasEmission()) f.emission[dst] = m.emission[src];
+            }
+    return f;
+}
+}  // namespace
+
 LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) {
     const auto t0 = Clock::now();
     m.validate();
+    if (s.subdivide < 1 || s.subdivide > 8)
+        throw Error("LPM", "subdivision must be in 1..8, got " + std::to_string(s.subdivide));
+    if (s.subdivide > 1) {
+        // Solve on the refined grid, then average the SH of S back over each voxel (the
+        // voxel average of S is what the result means at any resolution).
+        const int k = s.subdivide;
+        LpmSettings fs = s;
+        fs.subdivide = 1;
+        LpmResult fr = solveLpm(subdivided(m, k), lights, fs);
+        LpmResult res = fr;
+        const size_t N = m.voxelCount(), nc = size_t(fr.coeffs);
+        res.sh.assign(N * nc * 3, 0.0f);
+        const Medium& c = m;
+        const int fnx = m.nx * k, fny = m.ny * k;
+        parallelForChunks(N, 1024, [&](size_t b, size_t e) {
+            std::vector<double> acc(nc * 3);
+            for (size_t v = b; v < e; ++v) {
+                const int x = int(v % c.nx), y = int((v / c.nx) % c.ny), z = int(v / (size_t(c.nx) * c.ny));
+                std::fill(acc.begin(), acc.end(), 0.0);
+                for (int dz = 0; dz < k; ++dz)
+                    for (int dy = 0; dy < k; ++dy)
+                        for (int dx = 0; dx < k; ++dx) {
+                            const size_t fv = size_t(x * k + dx) + size_t(fnx) * (size_t(y * k + dy) + size_t(fny) * (z * k + dz));
+                            for (size_t i = 0; i < nc * 3; ++i) acc[i] += fr.sh[fv * nc * 3 + i];
+                        }
+                for (size_t i = 0; i < nc * 3; ++i) res.sh[v * nc * 3 + i] = float(acc[i] / (k * k * k));
+            }
+        });
+        res.decisions.push_back("solved on voxels split " + std::to_string(k) + "x" + std::to_string(k) + "x" +
+                                std::to_string(k) + " and averaged back");
+        res.seconds = secondsSince(t0);
+        return res;
+    }
     if (s.raysPerVoxel < 1 || s.raysPerVoxel > 16)
         throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(s.raysPerVoxel));
     if (s.shOrder < 0 || s.shOrder > kMaxShOrder)
@@ -234,6 +288,21 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
     if (binsPerFace > 0 && s.directionsPerFace % binsPerFace != 0)
         throw Error("LPM", "bins per face (" + std::to_string(binsPerFace) + ") must divide directions per face (" +
                                std::to_string(s.directionsPerFace) + ")");
+    {
+        // Voxel-constant sources leak light across optically thick voxels (the step
+        // scheme's numerical diffusion): say so, and what fixes it.
+        double maxTau = 0;
+        const double hmax = std::max(m.voxelSize.x, std::max(m.voxelSize.y, m.voxelSize.z));
+        for (float sg : m.sigmaT) maxTau = std::max(maxTau, double(sg) * hmax);
+        if (maxTau > 2.0) {
+            char buf[240];
+            std::snprintf(buf, sizeof buf,
+                          "warning: voxels up to optical depth %.3g across; above ~2 light leaks through them "
+                          "(measured in docs/accuracy.md): subdivide by %d to bring it near 2",
+                          maxTau, int(std::ceil(maxTau / 2.0)));
+            res.decisions.push_back(buf);
+        }
+    }
     const CubeQuadrature quad(s.directionsPerFace);
     std::unique_ptr<CubeQuadrature> binQuad;
     if (binsPerFace > 0) binQuad.reset(new CubeQuadrature(binsPerFace));

@@ -25,6 +25,8 @@ struct LpmSettings {
     bool krylov = true;         ///< allow GMRES acceleration when source iteration would be slow
     int krylovAfter = 25;       ///< switch when plain iteration would need more than this many passes
     int krylovRestart = 40;     ///< GMRES restart length (capped by a 2 GiB budget for Krylov vectors)
+    int subdivide = 1;          ///< solve on voxels split k x k x k (same medium), average back: for
+                                ///< optically thick voxels, where a voxel-constant source leaks light
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass
 };
 

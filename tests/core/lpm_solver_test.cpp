@@ -318,3 +318,37 @@ TEST(LpmSolver, RejectsBadSettings) {
     m.g = 1.0;
     EXPECT_THROW(solveLpm(m, Lights{}, LpmSettings{}), Error);
 }
+
+TEST(LpmSolver, SubdivisionAveragesBackAndWarnsOnThickVoxels) {
+    // Thin medium: splitting voxels changes nothing but the sampling, so results agree.
+    Medium m = makeVolume(VolumeKind::Cloud, 10, 1.0);
+    m.albedo = RGB(0.8f);
+    const EnvMap sky = makeSky(32);
+    Lights lights;
+    lights.env = &sky;
+    LpmSettings s;
+    const LpmResult a = solveLpm(m, lights, s);
+    s.subdivide = 2;
+    const LpmResult b = solveLpm(m, lights, s);
+    ASSERT_EQ(a.sh.size(), b.sh.size());
+    double sumSq = 0;
+    int n = 0;
+    for (size_t v = 0; v < m.voxelCount(); ++v)
+        if (m.sigmaT[v] > 0) {
+            const double d = double(b.coeff(v, 0)[0]) / a.coeff(v, 0)[0] - 1;
+            sumSq += d * d;
+            ++n;
+        }
+    EXPECT_LT(std::sqrt(sumSq / n), 0.01);
+    bool said = false;
+    for (const auto& d : b.decisions) said |= d.find("split 2x2x2") != std::string::npos;
+    EXPECT_TRUE(said);
+    // Thick voxels: the solver warns and names a subdivision.
+    scaleToMaxOpticalDepth(m, 60.0);
+    s.subdivide = 1;
+    s.maxOrders = 3;
+    const LpmResult c = solveLpm(m, lights, s);
+    bool warned = false;
+    for (const auto& d : c.decisions) warned |= d.find("subdivide by") != std::string::npos;
+    EXPECT_TRUE(warned);
+}
