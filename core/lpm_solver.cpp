@@ -48,6 +48,7 @@ struct Job {
     RGB boundary;         // radiance (irradiance for suns) entering through the faces
     double weight = 1;    // solid angle of the direction bin (1 for suns)
     const float* src = nullptr;  // per-voxel RGB radiance feeding the source, or null
+    size_t srcStride = 3;        // floats between consecutive voxels in src
     RGB srcScale;         // Q_c = sigma_t * srcScale_c * src_c
     double offsetU = 0.5, offsetV = 0.5;  // ray-lattice offset within a lattice cell, [0, 1)
     std::vector<double> shCoef;   // per SH coefficient: multiplies Phi (includes 1/V)
@@ -85,6 +86,7 @@ void sweep(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
     const double stepV = dv != 0 ? 1.0 / std::fabs(dv) : inf;
     const float* sigma = m.sigmaT.data();
     const float* src = job.src;
+    const size_t srcStride = job.srcStride;
     const double scale[3] = {job.srcScale.r, job.srcScale.g, job.srcScale.b};
     const double alb[3] = {m.albedo.r, m.albedo.g, m.albedo.b};
     const double bnd[3] = {job.boundary.r, job.boundary.g, job.boundary.b};
@@ -131,7 +133,7 @@ void sweep(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
                         const double e2 = tau < 1e-3 ? len * len * (0.5 - tau * (1.0 / 6 - tau / 24))
                                                      : len * len * (tau + em) / (tau * tau);
                         for (int c = 0; c < 3; ++c) {
-                            const double Q = src ? s * scale[c] * src[vox * 3 + c] : 0.0;
+                            const double Q = src ? s * scale[c] * src[vox * srcStride + c] : 0.0;
                             const double I = Lk[c] * e1 + Q * e2;  // Int L ds over the segment
                             Lk[c] = Lk[c] * T + Q * e1;
                             ph[c] += float(aPerp * I);
@@ -375,6 +377,7 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
     };
 
     res.sh.assign(N * nc * 3, 0.0f);
+    // Unshot radiance per bin, layout [voxel][bin][rgb].
     std::vector<float> unshot(size_t(nb) * N * 3, 0.0f), next(size_t(nb) * N * 3, 0.0f);
     const int r = s.raysPerVoxel;
     const size_t batchMem = size_t(512) << 20;
@@ -410,10 +413,10 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
                                 for (int c = 0; c < 3; ++c) o[k * 3 + c] += float(a * p[c]);
                             }
                         }
+                        float* un = &out[x * nb * 3];  // [voxel][bin][rgb]: contiguous per voxel
                         for (int d = 0; d < nb; ++d) {
-                            const double bc = job.binCoef[d];
-                            float* un = &out[(size_t(d) * N + x) * 3];
-                            for (int c = 0; c < 3; ++c) un[c] += float(bc * p[c]);
+                            const float bc = float(job.binCoef[d]);
+                            for (int c = 0; c < 3; ++c) un[d * 3 + c] += bc * p[c];
                         }
                     }
                 }
@@ -492,7 +495,8 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
         jobs.reserve(nd);
         for (int i = 0; i < nd; ++i) {
             Job j = makeJob(i);
-            j.src = &src[size_t(ff.binOfDirection(i)) * N * 3];
+            j.src = &src[size_t(ff.binOfDirection(i)) * 3];
+            j.srcStride = size_t(nb) * 3;
             j.srcScale = m.albedo;
             jobs.push_back(std::move(j));
         }
@@ -548,8 +552,7 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
         // chunked in a fixed order, so the result stays thread-count independent.
         const size_t len = next.size();
         std::vector<double> binW(len);
-        for (int d = 0; d < nb; ++d)
-            std::fill(binW.begin() + size_t(d) * N * 3, binW.begin() + size_t(d + 1) * N * 3, ff.binWeight(d));
+        for (size_t i = 0; i < len; ++i) binW[i] = ff.binWeight(int((i / 3) % nb));
         auto dotW = [&](const std::vector<float>& a, const std::vector<float>& b) {
             const size_t chunk = 1 << 16;
             std::vector<double> part((len + chunk - 1) / chunk, 0.0);
@@ -656,7 +659,7 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
         for (int d = 0; d < nb; ++d)
             for (size_t x = 0; x < N; ++x)
                 for (int c = 0; c < 3; ++c) {
-                    const size_t i = (size_t(d) * N + x) * 3 + c;
+                    const size_t i = (x * nb + d) * 3 + c;
                     miss += std::fabs(double(B[i]) + next[i] - X[i]) * m.sigmaT[x] * m.albedo[c] * ff.binWeight(d) * V;
                 }
         res.passes.back().scattered = miss / 3.0;
