@@ -34,6 +34,8 @@ int main(int argc, char** argv) {
     for (int n : {2, 3, 6}) add("directions/face n=" + std::to_string(n), [n](LpmSettings& s) { s.directionsPerFace = n; });
     for (int r : {1, 4}) add("rays/voxel r=" + std::to_string(r), [r](LpmSettings& s) { s.raysPerVoxel = r; });
     for (int b : {1, 4}) add("bins/face b=" + std::to_string(b), [b](LpmSettings& s) { s.binsPerFace = b; });
+    add("no GMRES (plain source iteration)", [](LpmSettings& s) { s.krylov = false; });
+    add("subdivide 2", [](LpmSettings& s) { s.subdivide = 2; });
     for (double t : {1e-2, 1e-4}) {
         char buf[64];
         std::snprintf(buf, sizeof buf, "tolerance %.0e", t);
