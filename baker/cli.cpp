@@ -94,7 +94,7 @@ const char* kDescription = R"(NAME
 
 SYNOPSIS
   lpmbake IN.vdb [--env SKY.exr] [--sun DX,DY,DZ ...] -o OUT.vdb [options]
-  lpmbake render BAKED.vdb --eye X,Y,Z --target X,Y,Z --fov-y DEG --size WxH [--env SKY.exr] -o IMAGE.exr|.png
+  lpmbake render BAKED.vdb [--eye X,Y,Z --target X,Y,Z] --fov-y DEG --size WxH [--env SKY.exr] -o IMAGE.exr|.png
   lpmbake info BAKED.vdb
 
 DESCRIPTION
@@ -221,8 +221,8 @@ int runCli(int argc, char** argv) {
     std::string eye, target, up = "0,1,0", size = "256x256";
     CLI::App* render = app.add_subcommand("render", "ray-march a preview image of a bake (EXR scene-linear, PNG sRGB)");
     render->add_option("bake", r.bake, "baked VDB")->required();
-    render->add_option("--eye", eye, "camera position X,Y,Z")->required();
-    render->add_option("--target", target, "point looked at X,Y,Z")->required();
+    render->add_option("--eye", eye, "camera position X,Y,Z (default: framing the volume from +Z, a little above)");
+    render->add_option("--target", target, "point looked at X,Y,Z (default: the centre of the volume)");
     render->add_option("--up", up, "up vector X,Y,Z")->default_val("0,1,0");
     render->add_option("--fov-y", r.fovYDeg, "vertical field of view in degrees")->default_val(40.0);
     render->add_option("--size", size, "image size WxH")->default_val("256x256");
@@ -256,8 +256,10 @@ int runCli(int argc, char** argv) {
     log.verbosity = quiet ? 0 : 1 + verbose;
     try {
         if (*render) {
-            r.eye = parseVec3(eye, "--eye");
-            r.target = parseVec3(target, "--target");
+            r.autoEye = eye.empty();
+            r.autoTarget = target.empty();
+            if (!r.autoEye) r.eye = parseVec3(eye, "--eye");
+            if (!r.autoTarget) r.target = parseVec3(target, "--target");
             r.up = parseVec3(up, "--up");
             parseSize(size, r.width, r.height);
             runRender(r, log);

@@ -1,6 +1,7 @@
 // `lpmbake info BAKED.vdb`: grids, metadata, value ranges and NaN counts of a bake, and
 // whether it is a valid one (exit 0) or not (exit 2).
 #include <cmath>
+#include <iostream>
 #include <iomanip>
 #include <limits>
 #include <ostream>
@@ -92,7 +93,8 @@ int runInfo(const InfoOptions& o, std::ostream& out, const Log& log) {
     }
     out << "valid lpmbake bake: no\n";
     for (const auto& p : problems) out << "  problem: " << p << "\n";
-    log.warn("'" + o.bake + "' is not a valid lpmbake bake: " + problems.front());
+    // Not a crash, but the command failed: the one-line error format of every other failure.
+    std::cerr << "lpmbake: error: info: '" << o.bake << "' is not a valid lpmbake bake: " << problems.front() << "\n";
     return kExitInput;
 }
 

@@ -76,6 +76,7 @@ struct BakeSummary {
 struct RenderOptions {
     std::string bake, output, env, envColorSpace;
     Vec3 eye{0, 0, 5}, target{0, 0, 0}, up{0, 1, 0};
+    bool autoEye = false, autoTarget = false;  ///< frame the volume's bounding box instead
     double fovYDeg = 40;
     int width = 256, height = 256;
     double stepVoxels = 0.5;  ///< ray-march step in voxels

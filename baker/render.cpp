@@ -67,9 +67,6 @@ void runRender(const RenderOptions& o, const Log& log) {
     if (o.width <= 0 || o.height <= 0 || o.width > 16384 || o.height > 16384)
         throw UsageError("render: --size must be WxH with 1..16384 pixels per side");
     if (!(o.fovYDeg > 0 && o.fovYDeg < 180)) throw UsageError("render: --fov-y must be in (0, 180) degrees");
-    if (!(length(o.target - o.eye) > 0)) throw UsageError("render: --eye and --target must differ");
-    if (!(length(cross(normalize(o.target - o.eye), o.up)) > 1e-6))
-        throw UsageError("render: --up must not be parallel to the view direction");
     if (!(o.stepVoxels > 0)) throw UsageError("render: --step must be positive");
     const std::string ext = lower(std::filesystem::path(o.output).extension().string());
     if (ext != ".exr" && ext != ".png")
@@ -101,21 +98,34 @@ void runRender(const RenderOptions& o, const Log& log) {
         env = std::move(e.env);
     }
 
+    const openvdb::math::Transform& xf = bake.density->transform();
+    openvdb::BBoxd box;
+    const bool hasVolume = bake.density->activeVoxelCount() > 0;
     PinholeCamera cam;
     cam.eye = o.eye;
     cam.target = o.target;
+    if (hasVolume) {
+        const openvdb::CoordBBox cb = bake.density->evalActiveVoxelBoundingBox();
+        box = openvdb::BBoxd(cb.min().asVec3d() - openvdb::Vec3d(1), cb.max().asVec3d() + openvdb::Vec3d(1));
+        // Default camera: look at the world-space box centre from +Z (and a little above
+        // and to the right), far enough for the bounding sphere to fit the field of view.
+        const openvdb::BBoxd wb = xf.indexToWorld(box);
+        const openvdb::Vec3d c = wb.getCenter();
+        const double radius = 0.5 * (wb.max() - wb.min()).length();
+        if (o.autoTarget) cam.target = {c.x(), c.y(), c.z()};
+        if (o.autoEye)
+            cam.eye = cam.target + normalize(Vec3(0.3, 0.35, 1.0)) * (1.05 * radius / std::sin(0.5 * o.fovYDeg * kPi / 180));
+    } else if (o.autoEye || o.autoTarget) {
+        throw InputError("render", "'" + o.bake + "' is an empty bake: give --eye and --target");
+    }
+    if (!(length(cam.target - cam.eye) > 0)) throw UsageError("render: --eye and --target must differ");
+    if (!(length(cross(normalize(cam.target - cam.eye), o.up)) > 1e-6))
+        throw UsageError("render: --up must not be parallel to the view direction");
     cam.up = o.up;
     cam.fovYDeg = o.fovYDeg;
     cam.width = o.width;
     cam.height = o.height;
 
-    const openvdb::math::Transform& xf = bake.density->transform();
-    openvdb::BBoxd box;
-    const bool hasVolume = bake.density->activeVoxelCount() > 0;
-    if (hasVolume) {
-        const openvdb::CoordBBox cb = bake.density->evalActiveVoxelBoundingBox();
-        box = openvdb::BBoxd(cb.min().asVec3d() - openvdb::Vec3d(1), cb.max().asVec3d() + openvdb::Vec3d(1));
-    }
     std::vector<float> img(size_t(o.width) * o.height * 3, 0.f);
     using openvdb::tools::BoxSampler;
     parallelForChunks(size_t(o.height), 1, [&](size_t y0, size_t y1) {
@@ -130,9 +140,9 @@ void runRender(const RenderOptions& o, const Log& log) {
                 const Vec3 v = cam.rayDirection(px + 0.5, py + 0.5);
                 double L[3] = {0, 0, 0}, T = 1;
                 double t0, t1;
-                const openvdb::Vec3d eo = xf.worldToIndex(openvdb::Vec3d(o.eye.x, o.eye.y, o.eye.z));
+                const openvdb::Vec3d eo = xf.worldToIndex(openvdb::Vec3d(cam.eye.x, cam.eye.y, cam.eye.z));
                 const openvdb::Vec3d di =
-                    xf.worldToIndex(openvdb::Vec3d(o.eye.x + v.x, o.eye.y + v.y, o.eye.z + v.z)) - eo;
+                    xf.worldToIndex(openvdb::Vec3d(cam.eye.x + v.x, cam.eye.y + v.y, cam.eye.z + v.z)) - eo;
                 if (hasVolume && clipRay(eo, di, box, t0, t1)) {
                     double Y[16];
                     shEval(-v, Y);  // S(x, -v): light travelling toward the eye

@@ -12,6 +12,7 @@
 #include <openvdb/tools/Interpolation.h>
 #include <openvdb/tools/LevelSetUtil.h>
 #include <openvdb/tree/LeafManager.h>
+#include <openvdb/util/logging.h>
 
 #include "core/parallel.h"
 #include "vdb_io/io_error.h"
@@ -93,7 +94,12 @@ openvdb::GridBase::Ptr readNamed(openvdb::io::File& file, const std::string& pat
 
 void initOpenVdb() {
     static std::once_flag once;
-    std::call_once(once, [] { openvdb::initialize(); });
+    std::call_once(once, [] {
+        openvdb::initialize();
+        // OpenVDB's own log lines (e.g. duplicate grid names) would repeat our warnings in
+        // another format; keep its errors only.
+        openvdb::logging::setLevel(openvdb::logging::Level::Error);
+    });
 }
 
 std::string describeGrid(const openvdb::GridBase& g) {
