@@ -280,3 +280,31 @@ TEST(Cli, ThreadsDefaultToSlurmAllocation) {
     ASSERT_EQ(runLpmbake(a, dir, {{"SLURM_CPUS_PER_TASK", "1"}}).code, 0);
     EXPECT_NE(lpmtest::readAll(dir + "/s.json").find("\"threads\": 1,"), std::string::npos);
 }
+
+// densityAndHeat.vdb: emission from the `heat` grid as the only light.
+TEST(Cli, EmissionGridIsALight) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string out = dir + "/h.vdb";
+    std::vector<std::string> a = {dataPath("vdb/densityAndHeat.vdb"), "--emission-grid", "heat", "--emission-scale", "2",
+                                  "--albedo", "0.5", "-o", out};
+    a.insert(a.end(), kCheap.begin(), kCheap.end());
+    const auto r = runLpmbake(a, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    const BakeFile b = readBakeFile(out);
+    ASSERT_TRUE(b.emission);
+    EXPECT_EQ(metaString(*b.meta, "lpm:emission_grid"), "heat");
+    // L_e = heat * 2 where the heat grid is sampled at a voxel centre.
+    openvdb::io::File in(dataPath("vdb/densityAndHeat.vdb"));
+    in.open(false);
+    auto heat = openvdb::gridPtrCast<openvdb::FloatGrid>(in.readGrid("heat"));
+    ASSERT_TRUE(heat);
+    ASSERT_TRUE(heat->transform() == b.emission->transform()) << "same transform in this file: values line up";
+    size_t checked = 0;
+    for (auto it = b.emission->cbeginValueOn(); it && checked < 200; ++it, ++checked)
+        ASSERT_NEAR((*it)[0], 2 * heat->tree().getValue(it.getCoord()), 1e-5);
+    float maxS = 0;
+    for (auto it = b.scatter->cbeginValueOn(); it; ++it) maxS = std::max(maxS, (*it)[0]);
+    EXPECT_GT(maxS, 0) << "scattered light from the emission";
+    a[2] = "velocity";
+    expectOneLineError(runLpmbake(a, dir), 2, "input", {"'velocity'"});
+}
