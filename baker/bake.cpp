@@ -70,6 +70,7 @@ void checkOptions(const BakeOptions& o) {
         if (!(s.angleDeg >= 0 && s.angleDeg < 180))
             throw UsageError("--sun-angle must be in [0, 180) degrees, got " + fmt(s.angleDeg));
     }
+    if (o.threads < 0) throw UsageError("--threads must be 0 (all cores) or positive, got " + std::to_string(o.threads));
     const LpmSettings& s = o.solver;
     if (s.directionsPerFace < 1) throw UsageError("--directions-per-face must be >= 1");
     if (s.raysPerVoxel < 1 || s.raysPerVoxel > 16) throw UsageError("--rays-per-voxel must be in 1..16");

@@ -68,6 +68,7 @@ void runRender(const RenderOptions& o, const Log& log) {
         throw UsageError("render: --size must be WxH with 1..16384 pixels per side");
     if (!(o.fovYDeg > 0 && o.fovYDeg < 180)) throw UsageError("render: --fov-y must be in (0, 180) degrees");
     if (!(o.stepVoxels > 0)) throw UsageError("render: --step must be positive");
+    if (o.threads < 0) throw UsageError("render: --threads must be 0 (all cores) or positive");
     const std::string ext = lower(std::filesystem::path(o.output).extension().string());
     if (ext != ".exr" && ext != ".png")
         throw UsageError("render: output '" + o.output + "' must end in .exr (scene-linear) or .png (sRGB view)");

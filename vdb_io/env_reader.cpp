@@ -73,8 +73,10 @@ EnvInput readEnvironment(const EnvReadOptions& o) {
         out.colorSpace = canonicalColorSpace(fileSpace);
     } else {
         out.colorSpace = canonicalColorSpace("lin_rec709");
-        out.warnings.push_back("'" + o.path + "' declares colour space '" + fileSpace +
-                               "', unknown to the OCIO config: reading it as lin_rec709 (set --env-colorspace)");
+        out.warnings.push_back("'" + o.path + "' " +
+                               (fileSpace.empty() ? std::string("declares no colour space")
+                                                  : "declares colour space '" + fileSpace + "', unknown to the OCIO config") +
+                               ": reading it as lin_rec709 (set --env-colorspace)");
     }
     out.workingSpace = canonicalColorSpace(o.workingSpace);
     convertColor(rgb, out.colorSpace, out.workingSpace);
