@@ -1,0 +1,308 @@
+// Command line of lpmbake (CLI11): parse into the option structs of options.h, run the
+// command, map exceptions to one-line errors and documented exit codes.
+#include <unistd.h>
+
+#include <cstdlib>
+#include <iostream>
+#include <new>
+#include <sstream>
+
+#include <CLI/CLI.hpp>
+#include <openvdb/Exceptions.h>
+
+#include "baker/options.h"
+#include "vdb_io/io_error.h"
+
+namespace lpm {
+
+void Log::warn(const std::string& m) const {
+    if (verbosity >= 1) std::cerr << "lpmbake: warning: " << m << "\n";
+}
+void Log::note(const std::string& m) const {
+    if (verbosity >= 1) std::cerr << "lpmbake: " << m << "\n";
+}
+void Log::debug(const std::string& m) const {
+    if (verbosity >= 2) std::cerr << "lpmbake: " << m << "\n";
+}
+
+namespace {
+
+std::vector<double> parseNumbers(const std::string& s, const std::string& opt) {
+    std::vector<double> v;
+    std::stringstream ss(s);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        try {
+            size_t used = 0;
+            v.push_back(std::stod(item, &used));
+            if (used != item.size()) throw std::invalid_argument(item);
+        } catch (const std::exception&) {
+            throw UsageError(opt + " expects numbers separated by commas, got '" + s + "'");
+        }
+    }
+    return v;
+}
+
+Vec3 parseVec3(const std::string& s, const std::string& opt) {
+    const auto v = parseNumbers(s, opt);
+    if (v.size() != 3) throw UsageError(opt + " expects X,Y,Z, got '" + s + "'");
+    return {v[0], v[1], v[2]};
+}
+
+RGB parseRgb(const std::string& s, const std::string& opt) {
+    const auto v = parseNumbers(s, opt);
+    if (v.size() == 1) return RGB(float(v[0]));
+    if (v.size() == 3) return RGB(float(v[0]), float(v[1]), float(v[2]));
+    throw UsageError(opt + " expects a value or R,G,B, got '" + s + "'");
+}
+
+void parseSize(const std::string& s, int& w, int& h) {
+    const auto x = s.find_first_of("xX");
+    try {
+        if (x == std::string::npos) throw std::invalid_argument(s);
+        size_t a = 0, b = 0;
+        w = std::stoi(s.substr(0, x), &a);
+        h = std::stoi(s.substr(x + 1), &b);
+        if (a != x || b != s.size() - x - 1) throw std::invalid_argument(s);
+    } catch (const std::exception&) {
+        throw UsageError("--size expects WxH (e.g. 640x360), got '" + s + "'");
+    }
+}
+
+/// Threads: --threads wins; else the Slurm allocation; else all cores (0).
+int defaultThreads() {
+    if (const char* s = std::getenv("SLURM_CPUS_PER_TASK"); s && *s) {
+        const int n = std::atoi(s);
+        if (n > 0) return n;
+    }
+    return 0;
+}
+
+std::string oneLine(std::string s) {
+    for (char& c : s)
+        if (c == '\n' || c == '\r') c = ' ';
+    return s;
+}
+
+int fail(int code, const std::string& what) {
+    std::cerr << "lpmbake: error: " << oneLine(what) << "\n";
+    return code;
+}
+
+const char* kDescription = R"(NAME
+  lpmbake - bake in-scattered radiance of an OpenVDB volume lit by an environment and suns
+
+SYNOPSIS
+  lpmbake IN.vdb [--env SKY.exr] [--sun DX,DY,DZ ...] -o OUT.vdb [options]
+  lpmbake render BAKED.vdb [--eye X,Y,Z --target X,Y,Z] --fov-y DEG --size WxH [--env SKY.exr] -o IMAGE.exr|.png
+  lpmbake info BAKED.vdb
+
+DESCRIPTION
+  Reads a float density grid, solves the radiative transfer equation with Light
+  Propagation Maps (multiple scattering, Henyey-Greenstein phase function) and writes
+  the spherical-harmonic coefficients of the phase-weighted in-scattered radiance
+  S(x,w) as Vec3f grids sh_0..sh_N, plus a direction-averaged 'scatter' grid and the
+  density, on the input's transform and active voxels. A renderer adds
+  sigma_s(x) * S(x,-view) along camera rays. See docs/cli.md and docs/output_format.md.
+)";
+
+const char* kFooter = R"(
+CONVENTIONS
+  Sun: --sun DX,DY,DZ points FROM the scene TOWARD the sun (0,1,0 = overhead), world
+  space. Irradiance is measured on a plane facing the sun, in the working colour space.
+  Environment: lat-long (width = 2 x height), OpenEXR ImfEnvmap orientation with +Y up:
+  the image centre looks toward +Z, a quarter from the left toward +X, the top row is +Y.
+  Units: sigma_t = density * --density-scale per world unit of the grid transform;
+  voxel centres are at integer index coordinates. S is radiance in the working colour
+  space (default ACEScg). Emission: --emission-grid values * --emission-scale are the
+  emitted radiance L_e; the source term is sigma_a * L_e (pbrt-v4).
+
+EXIT STATUS
+  0  success (also for an empty density grid: an empty bake is written, with a warning)
+  1  usage error (bad or inconsistent options)
+  2  input error (unreadable file, missing grid, bad values, not a valid bake for info)
+  3  output error (cannot write, or the output path is an input file)
+  4  internal error (out of memory, unexpected failure)
+  Errors are printed as one line: lpmbake: error: <component>: <message>
+
+ENVIRONMENT
+  OCIO                 OpenColorIO config to use instead of the shipped config.ocio
+  SLURM_CPUS_PER_TASK  default for --threads
+
+OUTPUT
+  The output appears atomically: it is written to .NAME.lpmtmp-PID.EXT in the output
+  directory and renamed when complete. The input is never overwritten.
+
+EXAMPLES
+  lpmbake cloud.vdb --env sky.exr --sun 0.3,0.8,0.5 --sun-irradiance 5 -o cloud_lit.vdb
+  lpmbake torus.vdb --grid voxel_fog_density --env sky.hdr --g 0.6 --sh-order 2 -o out.vdb
+  lpmbake render out.vdb --eye 0,0,8 --target 0,0,0 --fov-y 40 --size 512x512 -o out.png
+  lpmbake info out.vdb)";
+
+}  // namespace
+
+int runCli(int argc, char** argv) {
+    CLI::App app{kDescription, "lpmbake"};
+    app.get_formatter()->column_width(34);
+    app.footer(kFooter);
+    app.set_version_flag("--version", std::string("lpmbake ") + LPM_VERSION_STRING);
+    app.require_subcommand(0, 1);
+
+    BakeOptions b;
+    b.threads = defaultThreads();
+    int verbose = 0;
+    bool quiet = false;
+    std::string albedo = "0.9";
+    std::vector<std::string> suns, sunIrr;
+    std::vector<double> sunAngle;
+
+    app.add_option("input", b.input, "input OpenVDB file (positional)");
+    app.add_option("-o,--output", b.output, "output VDB (written atomically; never the input)");
+    auto* gIn = "Input volume";
+    app.add_option("--grid", b.grid, "name of the float density grid")->default_val("density")->group(gIn);
+    app.add_option("--grid-index", b.gridIndex, "which of several grids with that name (0-based; default 0 with a warning)")
+        ->group(gIn);
+    app.add_flag("--convert-level-set", b.convertLevelSet,
+                 "accept a level set by converting it with openvdb::tools::sdfToFogVolume")->group(gIn);
+    app.add_flag("--sanitize", b.sanitize,
+                 "clamp NaN/Inf/negative densities and NaN/Inf environment pixels to 0 (default: error)")->group(gIn);
+    app.add_option("--density-scale", b.densityScale, "sigma_t = density * this, per world unit")
+        ->default_val(1.0)->group(gIn);
+    app.add_option("--albedo", albedo, "single-scattering albedo sigma_s/sigma_t: A or R,G,B in [0,1]")
+        ->default_val("0.9")->group(gIn);
+    app.add_option("--g", b.g, "Henyey-Greenstein asymmetry in (-1,1); 0 = isotropic (SH order forced to 0)")
+        ->default_val(0.0)->group(gIn);
+    app.add_option("--emission-grid", b.emissionGrid, "float or Vec3f grid of emitted radiance L_e")->group(gIn);
+    app.add_option("--emission-scale", b.emissionScale, "L_e = emission value * this")->default_val(1.0)->group(gIn);
+    app.add_option("--max-voxels", b.maxVoxels, "refuse dense blocks larger than this (memory guard)")
+        ->default_val(b.maxVoxels)->group(gIn);
+
+    auto* gL = "Lights";
+    app.add_option("--env", b.env, "lat-long environment image (EXR, HDR, ... ; width = 2 x height)")->group(gL);
+    app.add_option("--env-colorspace", b.envColorSpace,
+                   "colour space of --env (default: the file's, if the OCIO config knows it, else lin_rec709)")
+        ->group(gL);
+    app.add_option("--working-space", b.workingSpace, "colour space of the bake")->default_val("ACEScg")->group(gL);
+    app.add_option("--env-rotate", b.envRotateDeg, "rotate the environment about +Y (degrees, right-handed)")
+        ->default_val(0.0)->group(gL);
+    app.add_option("--env-scale", b.envScale, "multiply environment radiance")->default_val(1.0)->group(gL);
+    app.add_option("--sun", suns, "direction TOWARD a sun, DX,DY,DZ (repeatable)")->group(gL);
+    app.add_option("--sun-irradiance", sunIrr,
+                   "sun irradiance E or R,G,B: once for all suns or once per --sun (default 1)")->group(gL);
+    app.add_option("--sun-angle", sunAngle, "sun angular diameter in degrees: once or once per --sun (default 0.53)")
+        ->group(gL);
+
+    auto* gS = "Solver";
+    app.add_option("--directions-per-face", b.solver.directionsPerFace,
+                   "n: n x n propagation directions per cube face")->default_val(b.solver.directionsPerFace)->group(gS);
+    app.add_option("--rays-per-voxel", b.solver.raysPerVoxel, "ray-map rays per voxel per lateral axis (1..16)")
+        ->default_val(b.solver.raysPerVoxel)->group(gS);
+    app.add_option("--bins-per-face", b.solver.binsPerFace, "unshot bins: -1 auto, 0 isotropic, b = b x b per face")
+        ->default_val(b.solver.binsPerFace)->group(gS);
+    app.add_option("--sh-order", b.solver.shOrder, "SH order of the result, 0..3")
+        ->default_val(b.solver.shOrder)->group(gS);
+    app.add_option("--tolerance", b.solver.tolerance, "stop when an order scatters less than this share of the input")
+        ->default_val(b.solver.tolerance)->group(gS);
+    app.add_option("--max-orders", b.solver.maxOrders, "at most this many scattering orders")
+        ->default_val(b.solver.maxOrders)->group(gS);
+
+    auto* gO = "Output and run";
+    app.add_flag("--half", b.half, "store 16-bit floats (warns when values exceed 65504)")->group(gO);
+    app.add_flag("--no-density", b.noDensity, "do not copy the density grid into the output")->group(gO);
+    app.add_option("--stats", b.statsPath, "write timings, voxel counts, passes, memory as JSON")->group(gO);
+    app.add_option("--threads", b.threads, "worker threads (default: $SLURM_CPUS_PER_TASK, else all cores)")
+        ->group(gO);
+    app.add_flag("-v,--verbose", verbose, "more messages (per-pass progress)")->group(gO);
+    app.add_flag("-q,--quiet", quiet, "errors only")->group(gO);
+
+    // render
+    RenderOptions r;
+    r.threads = defaultThreads();
+    std::string eye, target, up = "0,1,0", size = "256x256";
+    CLI::App* render = app.add_subcommand("render", "ray-march a preview image of a bake (EXR scene-linear, PNG sRGB)");
+    render->add_option("bake", r.bake, "baked VDB")->required();
+    render->add_option("--eye", eye, "camera position X,Y,Z (default: framing the volume from +Z, a little above)");
+    render->add_option("--target", target, "point looked at X,Y,Z (default: the centre of the volume)");
+    render->add_option("--up", up, "up vector X,Y,Z")->default_val("0,1,0");
+    render->add_option("--fov-y", r.fovYDeg, "vertical field of view in degrees")->default_val(40.0);
+    render->add_option("--size", size, "image size WxH")->default_val("256x256");
+    render->add_option("--env", r.env, "environment drawn behind the volume (rotation/scale from the bake)");
+    render->add_option("--env-colorspace", r.envColorSpace, "colour space of --env");
+    render->add_option("--step", r.stepVoxels, "ray-march step in voxels")->default_val(0.5);
+    render->add_option("-o,--output", r.output, "IMAGE.exr (scene-linear) or IMAGE.png (sRGB view)")->required();
+    render->add_option("--threads", r.threads, "worker threads");
+    render->add_flag("-v,--verbose", verbose, "more messages");
+    render->add_flag("-q,--quiet", quiet, "errors only");
+
+    // info
+    InfoOptions in;
+    CLI::App* info = app.add_subcommand("info", "describe a bake; exit 2 if it is not a valid one");
+    info->add_option("bake", in.bake, "baked VDB")->required();
+    info->add_flag("-q,--quiet", quiet, "errors only");
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        return fail(kExitUsage, std::string("usage: ") + e.what() + " (see lpmbake --help)");
+    }
+
+    Log log;
+    log.verbosity = quiet ? 0 : 1 + verbose;
+    try {
+        if (*render) {
+            r.autoEye = eye.empty();
+            r.autoTarget = target.empty();
+            if (!r.autoEye) r.eye = parseVec3(eye, "--eye");
+            if (!r.autoTarget) r.target = parseVec3(target, "--target");
+            r.up = parseVec3(up, "--up");
+            parseSize(size, r.width, r.height);
+            runRender(r, log);
+            return kExitOk;
+        }
+        if (*info) return runInfo(in, std::cout, log);
+
+        if (b.input.empty()) throw UsageError("no input VDB given (lpmbake IN.vdb --env SKY.exr -o OUT.vdb)");
+        b.albedo = parseRgb(albedo, "--albedo");
+        if (!sunIrr.empty() && sunIrr.size() != 1 && sunIrr.size() != suns.size())
+            throw UsageError("--sun-irradiance given " + std::to_string(sunIrr.size()) + " times for " +
+                             std::to_string(suns.size()) + " --sun: give it once or once per sun");
+        if (!sunAngle.empty() && sunAngle.size() != 1 && sunAngle.size() != suns.size())
+            throw UsageError("--sun-angle given " + std::to_string(sunAngle.size()) + " times for " +
+                             std::to_string(suns.size()) + " --sun: give it once or once per sun");
+        if (suns.empty() && (!sunIrr.empty() || !sunAngle.empty()))
+            throw UsageError("--sun-irradiance/--sun-angle without --sun");
+        for (size_t i = 0; i < suns.size(); ++i) {
+            SunOption s;
+            s.toSun = parseVec3(suns[i], "--sun");
+            if (!sunIrr.empty()) s.irradiance = parseRgb(sunIrr[sunIrr.size() == 1 ? 0 : i], "--sun-irradiance");
+            if (!sunAngle.empty()) s.angleDeg = sunAngle[sunAngle.size() == 1 ? 0 : i];
+            b.suns.push_back(s);
+        }
+        for (int i = 0; i < argc; ++i) b.commandLine += (i ? " " : "") + std::string(argv[i]);
+        runBake(b, log);
+        return kExitOk;
+    } catch (const UsageError& e) {
+        return fail(kExitUsage, std::string(e.what()) + " (see lpmbake --help)");
+    } catch (const InputError& e) {
+        return fail(kExitInput, e.what());
+    } catch (const OutputError& e) {
+        return fail(kExitOutput, e.what());
+    } catch (const Error& e) {
+        // Core validation (Medium, LPM, EnvMap) rejects values that came from the input.
+        return fail(kExitInput, e.what());
+    } catch (const std::bad_alloc&) {
+        return fail(kExitInternal, "internal: out of memory (try a smaller volume or --max-voxels)");
+    } catch (const std::exception& e) {
+        return fail(kExitInternal, std::string("internal: ") + e.what());
+    } catch (...) {
+        return fail(kExitInternal, "internal: unknown exception");
+    }
+}
+
+}  // namespace lpm

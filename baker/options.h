@@ -1,0 +1,100 @@
+// Options of the three lpmbake commands, as plain structs: the CLI (cli.cpp) fills them,
+// the library functions (bake.cpp, render.cpp, info.cpp) consume them. Tests build them
+// directly.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "core/lpm_solver.h"
+#include "core/math.h"
+
+namespace lpm {
+
+/// Exit codes (documented in --help and docs/cli.md).
+enum ExitCode : int { kExitOk = 0, kExitUsage = 1, kExitInput = 2, kExitOutput = 3, kExitInternal = 4 };
+
+/// A bad command line (inconsistent or out-of-range options): exit code 1.
+class UsageError : public Error {
+public:
+    explicit UsageError(const std::string& message) : Error("usage", message) {}
+};
+
+/// Messages to stderr, filtered by verbosity (0 = -q: errors only, 1 = default, 2 = -v).
+struct Log {
+    int verbosity = 1;
+    void warn(const std::string& m) const;   ///< "lpmbake: warning: m" (verbosity >= 1)
+    void note(const std::string& m) const;   ///< "lpmbake: m" (verbosity >= 1)
+    void debug(const std::string& m) const;  ///< "lpmbake: m" (verbosity >= 2)
+};
+
+struct SunOption {
+    Vec3 toSun{0, 1, 0};  ///< direction toward the sun (need not be unit)
+    RGB irradiance{1, 1, 1};
+    double angleDeg = 0.53;
+};
+
+struct BakeOptions {
+    std::string input, output;
+    std::string grid = "density";
+    int gridIndex = -1;
+    bool convertLevelSet = false;
+    bool sanitize = false;
+    double densityScale = 1.0;
+    RGB albedo{0.9f, 0.9f, 0.9f};
+    double g = 0.0;
+    std::string emissionGrid;
+    double emissionScale = 1.0;
+
+    std::string env, envColorSpace;
+    std::string workingSpace = "ACEScg";
+    double envRotateDeg = 0.0;
+    float envScale = 1.0f;
+    std::vector<SunOption> suns;
+
+    LpmSettings solver;
+    int threads = 0;  ///< 0 = all cores
+    bool half = false;
+    bool noDensity = false;
+    std::uint64_t maxVoxels = 1ull << 30;
+    std::string statsPath;
+    std::string commandLine;  ///< recorded in the metadata
+};
+
+struct BakeSummary {
+    bool empty = false;
+    int shOrder = 0, passes = 0;
+    double residual = 0;
+    bool converged = false;
+    std::uint64_t denseVoxels = 0, activeVoxels = 0, segments = 0;
+    double secondsRead = 0, secondsEnv = 0, secondsSolve = 0, secondsWrite = 0, secondsTotal = 0;
+    long peakRssKiB = 0;
+};
+
+struct RenderOptions {
+    std::string bake, output, env, envColorSpace;
+    Vec3 eye{0, 0, 5}, target{0, 0, 0}, up{0, 1, 0};
+    bool autoEye = false, autoTarget = false;  ///< frame the volume's bounding box instead
+    double fovYDeg = 40;
+    int width = 256, height = 256;
+    double stepVoxels = 0.5;  ///< ray-march step in voxels
+    int threads = 0;
+};
+
+struct InfoOptions {
+    std::string bake;
+};
+
+/// Bakes; throws lpm::Error subclasses (UsageError, InputError, OutputError).
+BakeSummary runBake(const BakeOptions& options, const Log& log);
+/// Renders a preview image of a bake; throws like runBake.
+void runRender(const RenderOptions& options, const Log& log);
+/// Prints a report to `out`; returns kExitOk for a valid bake, kExitInput otherwise.
+int runInfo(const InfoOptions& options, std::ostream& out, const Log& log);
+
+/// Parses the command line and runs the command; never throws. Returns an ExitCode.
+int runCli(int argc, char** argv);
+
+}  // namespace lpm

@@ -1,0 +1,310 @@
+// lpmbake end to end: exit codes, one-line errors, a real bake with its metadata and
+// stats, info, render, atomic output. Cheap solver settings keep it fast.
+#include <gtest/gtest.h>
+
+#include <sys/stat.h>
+
+#include <openvdb/tools/LevelSetSphere.h>
+
+#include "../vdb_io/test_helpers.h"
+#include "run_helpers.h"
+#include "vdb_io/bake_file.h"
+
+using namespace lpm;
+using lpmtest::dataPath;
+using lpmtest::runLpmbake;
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::vector<std::string> kCheap = {"--directions-per-face", "2", "--tolerance", "1e-2", "--rays-per-voxel", "1"};
+
+std::vector<std::string> torusArgs(const std::string& out) {
+    std::vector<std::string> a = {dataPath("vdb/torus01.vdb"), "--grid", "voxel_fog_density", "--env",
+                                  dataPath("env/rooftop_small.hdr"), "-o", out};
+    a.insert(a.end(), kCheap.begin(), kCheap.end());
+    return a;
+}
+
+/// Every failure is exactly one line "lpmbake: error: <component>: ...".
+void expectOneLineError(const lpmtest::RunResult& r, int code, const std::string& component,
+                        std::initializer_list<std::string> parts = {}) {
+    EXPECT_EQ(r.code, code) << r.err;
+    EXPECT_EQ(r.signal, 0);
+    const std::string prefix = "lpmbake: error: " + component + ": ";
+    const size_t at = r.err.find(prefix);
+    ASSERT_NE(at, std::string::npos) << r.err;
+    const std::string line = r.err.substr(at, r.err.find('\n', at) - at);
+    EXPECT_EQ(r.err.find("lpmbake: error:", at + 1), std::string::npos) << "one error line only: " << r.err;
+    for (const auto& p : parts) EXPECT_NE(line.find(p), std::string::npos) << "'" << p << "' not in: " << line;
+}
+
+size_t tempFilesIn(const std::string& dir) {
+    size_t n = 0;
+    for (auto& e : fs::directory_iterator(dir)) n += e.path().filename().string().find(".lpmtmp-") != std::string::npos;
+    return n;
+}
+
+}  // namespace
+
+TEST(Cli, HelpReadsLikeAManPage) {
+    const std::string dir = lpmtest::scratchDir();
+    const auto r = runLpmbake({"--help"}, dir);
+    EXPECT_EQ(r.code, 0);
+    for (const char* s : {"NAME", "SYNOPSIS", "DESCRIPTION", "CONVENTIONS", "EXIT STATUS", "EXAMPLES", "--sun",
+                          "--env-rotate", "--sh-order", "--stats", "render", "info", "TOWARD the sun"})
+        EXPECT_NE(r.out.find(s), std::string::npos) << s;
+    EXPECT_EQ(runLpmbake({"render", "--help"}, dir).code, 0);
+    EXPECT_NE(runLpmbake({"--version"}, dir).out.find("lpmbake"), std::string::npos);
+}
+
+TEST(Cli, UsageErrorsExit1) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string out = dir + "/o.vdb";
+    expectOneLineError(runLpmbake({"--bogus"}, dir), 1, "usage", {"--bogus"});
+    expectOneLineError(runLpmbake({"-o", out, "--sun", "0,1,0"}, dir), 1, "usage", {"no input"});
+    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out}, dir), 1, "usage", {"no light"});
+    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1", "--sun-irradiance", "1"}, dir),
+                       1, "usage", {"--sun", "X,Y,Z"});
+    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--sun", "1,0,0",
+                                   "--sun-irradiance", "1", "--sun-irradiance", "1", "--sun-irradiance", "1"},
+                                  dir),
+                       1, "usage", {"--sun-irradiance", "3 times", "2 --sun"});
+    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--albedo", "1.5"}, dir), 1,
+                       "usage", {"--albedo"});
+    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--g", "1"}, dir), 1,
+                       "usage", {"--g"});
+    expectOneLineError(runLpmbake({"render", dataPath("vdb/torus01.vdb"), "-o", dir + "/x.jpg"}, dir), 1, "usage",
+                       {".exr", ".png"});
+    EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(Cli, InputErrorsExit2) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string out = dir + "/o.vdb";
+    std::vector<std::string> a = {dir + "/missing.vdb", "--sun", "0,1,0", "-o", out};
+    expectOneLineError(runLpmbake(a, dir), 2, "input", {"missing.vdb"});
+    a = {dataPath("vdb/torus01.vdb"), "--sun", "0,1,0", "-o", out};
+    expectOneLineError(runLpmbake(a, dir), 2, "input", {"'density'", "voxel_fog_density"});
+    a = {dataPath("vdb/smoke_seq.0001.vdb"), "--grid", "velocity", "--sun", "0,1,0", "-o", out};
+    expectOneLineError(runLpmbake(a, dir), 2, "input", {"velocity", "vec3s"});
+    a = torusArgs(out);
+    a[4] = dataPath("env/BrightRingsNanInf.exr");
+    expectOneLineError(runLpmbake(a, dir), 2, "env", {"BrightRingsNanInf.exr", "NaN"});
+    a.push_back("--sanitize");
+    expectOneLineError(runLpmbake(a, dir), 2, "env", {"800x800", "lat-long"});
+    // A corrupted VDB: truncated and with flipped bytes.
+    std::string bytes = lpmtest::readAll(dataPath("vdb/torus01.vdb"));
+    for (size_t i = 200; i < bytes.size(); i += 97) bytes[i] = char(~bytes[i]);
+    std::ofstream(dir + "/bad.vdb", std::ios::binary) << bytes.substr(0, bytes.size() * 2 / 3);
+    a = {dir + "/bad.vdb", "--grid", "voxel_fog_density", "--sun", "0,1,0", "-o", out};
+    const auto r = runLpmbake(a, dir);
+    EXPECT_EQ(r.signal, 0) << "no crash on a corrupted file";
+    EXPECT_EQ(r.code, 2) << r.err;
+    // A level set is refused with the conversion hint, and accepted when asked to convert.
+    initOpenVdb();
+    auto ls = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(2.0f, openvdb::Vec3f(0.f), 0.5f);
+    ls->setName("density");
+    lpmtest::writeVdb(dir + "/ls.vdb", {ls});
+    a = {dir + "/ls.vdb", "--sun", "0,1,0", "-o", out};
+    a.insert(a.end(), kCheap.begin(), kCheap.end());
+    expectOneLineError(runLpmbake(a, dir), 2, "input", {"level set", "sdfToFogVolume"});
+    a.push_back("--convert-level-set");
+    EXPECT_EQ(runLpmbake(a, dir).code, 0);
+    EXPECT_TRUE(fs::exists(out));
+}
+
+TEST(Cli, BakeInfoAndStats) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string out = dir + "/torus_lit.vdb", stats = dir + "/stats.json";
+    auto a = torusArgs(out);
+    a.insert(a.end(), {"--sun", "0.3,0.8,0.5", "--sun-irradiance", "2,2,1.5", "--g", "0.4", "--sh-order", "1",
+                       "--albedo", "0.8,0.85,0.9", "--density-scale", "0.5", "--stats", stats});
+    const auto r = runLpmbake(a, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find("solver: "), std::string::npos) << "solver decisions go to stderr";
+    EXPECT_EQ(tempFilesIn(dir), 0u);
+
+    const BakeFile b = readBakeFile(out);
+    EXPECT_TRUE(validateBake(b).empty());
+    EXPECT_EQ(b.shOrder, 1);
+    ASSERT_EQ(b.sh.size(), 4u);
+    ASSERT_TRUE(b.density);
+    // The density copy and all outputs share the input's topology.
+    openvdb::io::File in(dataPath("vdb/torus01.vdb"));
+    in.open(false);
+    auto src = openvdb::gridPtrCast<openvdb::FloatGrid>(in.readGrid("voxel_fog_density"));
+    EXPECT_TRUE(b.sh[3]->tree().hasSameTopology(src->tree()));
+    EXPECT_TRUE(b.scatter->transform() == src->transform());
+    // Lit: positive direction-average everywhere it is defined, finite everywhere.
+    double maxS = 0;
+    for (auto it = b.scatter->cbeginValueOn(); it; ++it) {
+        for (int c = 0; c < 3; ++c) ASSERT_TRUE(std::isfinite((*it)[c]) && (*it)[c] >= 0);
+        maxS = std::max(maxS, double((*it)[0]));
+    }
+    EXPECT_GT(maxS, 0);
+    // Metadata a consumer needs, all under the lpm: prefix.
+    for (const char* k : {"lpm:format_version", "lpm:version", "lpm:sh_order", "lpm:sh_basis", "lpm:quantity",
+                          "lpm:usage", "lpm:units", "lpm:working_colorspace", "lpm:density_scale", "lpm:albedo",
+                          "lpm:g", "lpm:lights", "lpm:suns", "lpm:env_file", "lpm:env_colorspace",
+                          "lpm:directions_per_face", "lpm:rays_per_voxel", "lpm:tolerance", "lpm:max_orders",
+                          "lpm:passes", "lpm:residual", "lpm:input_file", "lpm:input_grid", "lpm:timings",
+                          "lpm:storage", "lpm:decisions"})
+        EXPECT_TRUE((*b.meta)[k]) << k;
+    EXPECT_DOUBLE_EQ(metaDouble(*b.meta, "lpm:density_scale", 0), 0.5);
+    EXPECT_FLOAT_EQ(metaRgb(*b.meta, "lpm:albedo", RGB(0.f)).g, 0.85f);
+    EXPECT_EQ(metaString(*b.meta, "lpm:working_colorspace"), "ACEScg");
+    EXPECT_EQ(metaString(*b.meta, "lpm:input_grid"), "voxel_fog_density");
+    EXPECT_GT(metaInt(*b.meta, "lpm:passes", 0), 0);
+
+    const std::string js = lpmtest::readAll(stats);
+    for (const char* k : {"\"timings_s\"", "\"solve\"", "\"write\"", "\"voxels\"", "\"active\"", "\"passes\"",
+                          "\"residual\"", "\"peak_rss_mib\"", "\"ray_segments_per_second\"", "\"decisions\""})
+        EXPECT_NE(js.find(k), std::string::npos) << k;
+
+    const auto info = runLpmbake({"info", out}, dir);
+    EXPECT_EQ(info.code, 0) << info.err;
+    for (const char* s : {"sh_0", "sh_3", "scatter", "density", "lpm:sh_basis", "NaN/Inf voxels 0", "valid lpmbake bake: yes"})
+        EXPECT_NE(info.out.find(s), std::string::npos) << s;
+}
+
+TEST(Cli, InfoRejectsNonBakes) {
+    const std::string dir = lpmtest::scratchDir();
+    auto r = runLpmbake({"info", dataPath("vdb/torus01.vdb")}, dir);
+    EXPECT_NE(r.out.find("valid lpmbake bake: no"), std::string::npos);
+    expectOneLineError(r, 2, "info", {"torus01.vdb", "not a valid lpmbake bake"});
+    expectOneLineError(runLpmbake({"info", dataPath("env/rooftop_small.hdr")}, dir), 2, "input", {"rooftop_small.hdr"});
+    // A bake whose SH grid holds NaN is not valid either.
+    const std::string out = dir + "/b.vdb";
+    ASSERT_EQ(runLpmbake(torusArgs(out), dir).code, 0);
+    BakeFile b = readBakeFile(out);
+    b.sh[0]->tree().setValue(b.sh[0]->cbeginValueOn().getCoord(), openvdb::Vec3s(NAN, 0, 0));
+    openvdb::io::File f(dir + "/nan.vdb");
+    f.write(b.grids, *b.meta);
+    f.close();
+    r = runLpmbake({"info", dir + "/nan.vdb"}, dir);
+    expectOneLineError(r, 2, "info", {"NaN"});
+}
+
+TEST(Cli, EmptyFrameGivesValidEmptyBake) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string out = dir + "/empty.vdb";
+    const auto r = runLpmbake({dataPath("vdb/smoke_seq.0001.vdb"), "--env", dataPath("env/rooftop_small.hdr"), "-o", out}, dir);
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find("warning:"), std::string::npos);
+    EXPECT_NE(r.err.find("no active voxels"), std::string::npos);
+    EXPECT_EQ(runLpmbake({"info", out}, dir).code, 0);
+}
+
+TEST(Cli, DuplicateGridNamesWarnAndSelect) {
+    const std::string dir = lpmtest::scratchDir();
+    std::vector<std::string> a = {dataPath("vdb/grids_same_name.vdb"), "--sun", "0,1,0", "-o", dir + "/a.vdb"};
+    a.insert(a.end(), kCheap.begin(), kCheap.end());
+    auto r = runLpmbake(a, dir);
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find("3 grids named 'density'"), std::string::npos) << r.err;
+    a[4] = dir + "/b.vdb";
+    a.insert(a.end(), {"--grid-index", "2"});
+    r = runLpmbake(a, dir);
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(r.err.find("grids named"), std::string::npos);
+    EXPECT_FALSE(readBakeFile(dir + "/a.vdb").sh[0]->transform() == readBakeFile(dir + "/b.vdb").sh[0]->transform());
+}
+
+TEST(Cli, OutputErrorsExit3AndInputUntouched) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string in = dir + "/in.vdb";
+    fs::copy_file(dataPath("vdb/torus01.vdb"), in);
+    const auto size = fs::file_size(in);
+    auto a = torusArgs(in);
+    a[0] = in;
+    expectOneLineError(runLpmbake(a, dir), 3, "output", {"in.vdb", "input"});
+    EXPECT_EQ(fs::file_size(in), size);
+    a = torusArgs(dir + "/no/such/dir/out.vdb");
+    expectOneLineError(runLpmbake(a, dir), 3, "output", {"does not exist"});
+}
+
+// A farm kills the job after the data is written but before the rename: nothing may
+// appear at the output path, and an older output there stays as it was.
+TEST(Cli, KilledWhileWritingLeavesNoFile) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string out = dir + "/out.vdb";
+    auto r = runLpmbake(torusArgs(out), dir, {{"LPM_TEST_KILL_BEFORE_RENAME", "1"}});
+    EXPECT_EQ(r.signal, SIGKILL);
+    EXPECT_FALSE(fs::exists(out));
+    std::ofstream(out) << "older output";
+    r = runLpmbake(torusArgs(out), dir, {{"LPM_TEST_KILL_BEFORE_RENAME", "1"}});
+    EXPECT_EQ(r.signal, SIGKILL);
+    EXPECT_EQ(lpmtest::readAll(out), "older output");
+    // The same run without the hook replaces it with a valid bake.
+    r = runLpmbake(torusArgs(out), dir);
+    EXPECT_EQ(r.code, 0);
+    EXPECT_EQ(runLpmbake({"info", out}, dir).code, 0);
+}
+
+TEST(Cli, RenderPngAndExr) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string bake = dir + "/b.vdb";
+    auto a = torusArgs(bake);
+    a.insert(a.end(), {"--sun", "0,1,0", "--sun-irradiance", "3"});
+    ASSERT_EQ(runLpmbake(a, dir).code, 0);
+    auto r = runLpmbake({"render", bake, "--size", "48x32", "--env", dataPath("env/rooftop_small.hdr"), "-o", dir + "/p.png"}, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    r = runLpmbake({"render", bake, "--size", "48x32", "-o", dir + "/p.exr", "--eye", "-5.8,4,14", "--target", "-5.8,0,4.7"}, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(tempFilesIn(dir), 0u);
+
+    auto png = OIIO::ImageInput::open(dir + "/p.png");
+    ASSERT_TRUE(png);
+    EXPECT_EQ(png->spec().width, 48);
+    EXPECT_EQ(png->spec().height, 32);
+    auto exr = OIIO::ImageInput::open(dir + "/p.exr");
+    ASSERT_TRUE(exr);
+    EXPECT_EQ(exr->spec().get_string_attribute("lpm:colorspace"), "ACEScg");
+    std::vector<float> px(48 * 32 * 3);
+    ASSERT_TRUE(exr->read_image(0, 0, 0, 3, OIIO::TypeDesc::FLOAT, px.data()));
+    double sum = 0;
+    for (float v : px) {
+        ASSERT_TRUE(std::isfinite(v));
+        sum += v;
+    }
+    EXPECT_GT(sum, 0) << "the lit torus is in view (black background: no --env)";
+    expectOneLineError(runLpmbake({"render", dataPath("vdb/torus01.vdb"), "-o", dir + "/x.png"}, dir), 2, "render",
+                       {"not an lpmbake bake"});
+}
+
+TEST(Cli, ThreadsDefaultToSlurmAllocation) {
+    const std::string dir = lpmtest::scratchDir();
+    auto a = torusArgs(dir + "/o.vdb");
+    a.insert(a.end(), {"--stats", dir + "/s.json"});
+    ASSERT_EQ(runLpmbake(a, dir, {{"SLURM_CPUS_PER_TASK", "1"}}).code, 0);
+    EXPECT_NE(lpmtest::readAll(dir + "/s.json").find("\"threads\": 1,"), std::string::npos);
+}
+
+// densityAndHeat.vdb: emission from the `heat` grid as the only light.
+TEST(Cli, EmissionGridIsALight) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string out = dir + "/h.vdb";
+    std::vector<std::string> a = {dataPath("vdb/densityAndHeat.vdb"), "--emission-grid", "heat", "--emission-scale", "2",
+                                  "--albedo", "0.5", "-o", out};
+    a.insert(a.end(), kCheap.begin(), kCheap.end());
+    const auto r = runLpmbake(a, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    const BakeFile b = readBakeFile(out);
+    ASSERT_TRUE(b.emission);
+    EXPECT_EQ(metaString(*b.meta, "lpm:emission_grid"), "heat");
+    // L_e = heat * 2 where the heat grid is sampled at a voxel centre.
+    openvdb::io::File in(dataPath("vdb/densityAndHeat.vdb"));
+    in.open(false);
+    auto heat = openvdb::gridPtrCast<openvdb::FloatGrid>(in.readGrid("heat"));
+    ASSERT_TRUE(heat);
+    ASSERT_TRUE(heat->transform() == b.emission->transform()) << "same transform in this file: values line up";
+    size_t checked = 0;
+    for (auto it = b.emission->cbeginValueOn(); it && checked < 200; ++it, ++checked)
+        ASSERT_NEAR((*it)[0], 2 * heat->tree().getValue(it.getCoord()), 1e-5);
+    float maxS = 0;
+    for (auto it = b.scatter->cbeginValueOn(); it; ++it) maxS = std::max(maxS, (*it)[0]);
+    EXPECT_GT(maxS, 0) << "scattered light from the emission";
+    a[2] = "velocity";
+    expectOneLineError(runLpmbake(a, dir), 2, "input", {"'velocity'"});
+}

@@ -1,0 +1,145 @@
+// vdb_io/bake_file: output layout (names, classes, topology, values), metadata, half
+// storage, reading back and validation.
+#include "vdb_io/bake_file.h"
+
+#include <gtest/gtest.h>
+
+#include "core/sh.h"
+#include "test_helpers.h"
+#include "vdb_io/io_error.h"
+
+using namespace lpm;
+
+namespace {
+
+struct Fixture {
+    openvdb::FloatGrid::Ptr density;
+    std::vector<float> sh;
+    DenseBake bake;
+};
+
+/// A sparse density (two separate blobs) and a dense result with a distinct value per
+/// (voxel, coefficient, channel), laid out like the solver's.
+Fixture makeFixture(int coeffs, float scale = 1.f) {
+    Fixture f;
+    f.density = lpmtest::cubeGrid(3, 1.f, 0.5);
+    f.density->tree().setValue(openvdb::Coord(6, 1, 1), 2.f);
+    f.density->transform().postTranslate(openvdb::Vec3d(1, 2, 3));
+    f.bake.blockMin = openvdb::Coord(-1);
+    f.bake.nx = 9;
+    f.bake.ny = 5;
+    f.bake.nz = 5;
+    f.bake.coeffs = coeffs;
+    f.sh.resize(size_t(9 * 5 * 5) * coeffs * 3);
+    for (size_t i = 0; i < f.sh.size(); ++i) f.sh[i] = scale * (float(i % 1000) - 300.f) / 100.f;
+    f.bake.sh = f.sh.data();
+    return f;
+}
+
+const float* denseAt(const Fixture& f, const openvdb::Coord& c, int k) {
+    const openvdb::Coord d = c - f.bake.blockMin;
+    const size_t i = size_t(d.x()) + size_t(f.bake.nx) * (size_t(d.y()) + size_t(f.bake.ny) * d.z());
+    return &f.sh[(i * f.bake.coeffs + k) * 3];
+}
+
+}  // namespace
+
+TEST(BakeFile, LayoutTopologyAndValues) {
+    const std::string dir = lpmtest::scratchDir();
+    Fixture f = makeFixture(9);
+    openvdb::MetaMap meta;
+    meta.insertMeta("lpm:format_version", openvdb::Int32Metadata(kBakeFormatVersion));
+    meta.insertMeta("lpm:sh_order", openvdb::Int32Metadata(2));
+    meta.insertMeta("lpm:density_grid", openvdb::StringMetadata("density"));
+    BakeWriteOptions o;
+    o.path = dir + "/bake.vdb";
+    const BakeWriteReport rep = writeBake(*f.density, f.bake, meta, o);
+    EXPECT_EQ(rep.voxelsWritten, f.density->activeVoxelCount());
+
+    const BakeFile b = readBakeFile(o.path);
+    EXPECT_TRUE(validateBake(b).empty());
+    ASSERT_EQ(b.sh.size(), 9u);
+    ASSERT_TRUE(b.scatter && b.density);
+    EXPECT_FALSE(b.emission);
+    for (int k = 0; k < 9; ++k) {
+        const auto& g = b.sh[k];
+        EXPECT_EQ(g->getName(), "sh_" + std::to_string(k));
+        EXPECT_EQ(g->getGridClass(), openvdb::GRID_UNKNOWN);
+        EXPECT_EQ(g->getVectorType(), openvdb::VEC_INVARIANT);
+        EXPECT_TRUE(g->transform() == f.density->transform());
+        EXPECT_TRUE(g->tree().hasSameTopology(f.density->tree()));
+        for (auto it = f.density->cbeginValueOn(); it; ++it) {
+            const openvdb::Vec3s v = g->tree().getValue(it.getCoord());
+            const float* e = denseAt(f, it.getCoord(), k);
+            ASSERT_EQ(v, openvdb::Vec3s(e[0], e[1], e[2])) << "sh_" << k << " at " << it.getCoord();
+        }
+    }
+    EXPECT_EQ(b.scatter->getGridClass(), openvdb::GRID_FOG_VOLUME);
+    const openvdb::Coord c(6, 1, 1);
+    const float* e0 = denseAt(f, c, 0);
+    EXPECT_FLOAT_EQ(b.scatter->tree().getValue(c).x(), e0[0] * float(kY00));
+    EXPECT_FLOAT_EQ(b.density->tree().getValue(c), 2.f);
+    EXPECT_EQ(b.meta->metaValue<std::string>("lpm:density_grid"), "density");
+    EXPECT_EQ(b.shOrder, 2);
+}
+
+TEST(BakeFile, HalfStorageWarnsAboveHalfMax) {
+    const std::string dir = lpmtest::scratchDir();
+    Fixture f = makeFixture(1, 1e5f);  // values up to ~7e5
+    openvdb::MetaMap meta;
+    BakeWriteOptions o;
+    o.path = dir + "/half.vdb";
+    o.half = true;
+    BakeWriteReport rep = writeBake(*f.density, f.bake, meta, o);
+    ASSERT_EQ(rep.warnings.size(), 1u);
+    EXPECT_NE(rep.warnings[0].find("65504"), std::string::npos);
+    Fixture small = makeFixture(1, 1.f);
+    o.path = dir + "/half_ok.vdb";
+    rep = writeBake(*small.density, small.bake, meta, o);
+    EXPECT_TRUE(rep.warnings.empty());
+    // Same data as float32: the half file is smaller and reads back within half precision.
+    o.half = false;
+    o.path = dir + "/float.vdb";
+    writeBake(*small.density, small.bake, meta, o);
+    EXPECT_LT(std::filesystem::file_size(dir + "/half_ok.vdb"), std::filesystem::file_size(o.path));
+    const BakeFile h = readBakeFile(dir + "/half_ok.vdb"), fl = readBakeFile(o.path);
+    for (auto it = fl.sh[0]->cbeginValueOn(); it; ++it)
+        for (int c = 0; c < 3; ++c)
+            ASSERT_NEAR(h.sh[0]->tree().getValue(it.getCoord())[c], (*it)[c], 1e-3 * std::fabs((*it)[c]) + 1e-6);
+}
+
+TEST(BakeFile, EmptyBakeAndNoDensity) {
+    const std::string dir = lpmtest::scratchDir();
+    auto empty = openvdb::FloatGrid::create(0.f);
+    DenseBake db;  // sh == nullptr: no result
+    db.coeffs = 1;
+    openvdb::MetaMap meta;
+    meta.insertMeta("lpm:format_version", openvdb::Int32Metadata(kBakeFormatVersion));
+    meta.insertMeta("lpm:sh_order", openvdb::Int32Metadata(0));
+    BakeWriteOptions o;
+    o.path = dir + "/empty.vdb";
+    o.writeDensity = false;
+    writeBake(*empty, db, meta, o);
+    const BakeFile b = readBakeFile(o.path);
+    EXPECT_TRUE(validateBake(b).empty());
+    EXPECT_EQ(b.sh.size(), 1u);
+    EXPECT_EQ(b.sh[0]->activeVoxelCount(), 0u);
+    EXPECT_FALSE(b.density);
+}
+
+TEST(BakeFile, NeverOverwritesInputAndValidatesForeignFiles) {
+    const std::string dir = lpmtest::scratchDir();
+    Fixture f = makeFixture(1);
+    const std::string in = dir + "/in.vdb";
+    lpmtest::writeVdb(in, {f.density});
+    const auto before = std::filesystem::file_size(in);
+    BakeWriteOptions o;
+    o.path = in;
+    o.inputs = {in};
+    EXPECT_THROW(writeBake(*f.density, f.bake, openvdb::MetaMap(), o), OutputError);
+    EXPECT_EQ(std::filesystem::file_size(in), before);
+    const BakeFile b = readBakeFile(in);  // a plain density file: readable, not a bake
+    const auto why = validateBake(b);
+    EXPECT_FALSE(why.empty());
+    EXPECT_THROW(readBakeFile(dir + "/missing.vdb"), InputError);
+}

@@ -1,0 +1,35 @@
+// Atomic output files: write to a temporary file in the destination directory, flush it
+// to disk, then rename() it over the final name. A job killed at any point leaves either
+// no file or the previous file at the final name, never a truncated one (a stray
+// ".NAME.lpmtmp-PID.EXT" may remain after SIGKILL; SIGINT/SIGTERM/SIGHUP remove it).
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace lpm {
+
+class AtomicOutput {
+public:
+    /// Throws OutputError if `finalPath` is one of `inputs` (same file or same path), or its
+    /// directory does not exist.
+    AtomicOutput(const std::string& finalPath, const std::vector<std::string>& inputs);
+    ~AtomicOutput();  ///< removes the temporary file unless commit() succeeded
+    AtomicOutput(const AtomicOutput&) = delete;
+    AtomicOutput& operator=(const AtomicOutput&) = delete;
+
+    /// Where to write. Keeps the final extension (image writers choose the format by it).
+    const std::string& tempPath() const { return temp_; }
+    const std::string& finalPath() const { return final_; }
+
+    /// fsync()s the temporary file and renames it to the final path. Throws OutputError.
+    /// Test hook: with LPM_TEST_KILL_BEFORE_RENAME=1 in the environment the process
+    /// SIGKILLs itself here, as a farm would kill a job in the middle of writing.
+    void commit();
+
+private:
+    std::string final_, temp_;
+    bool committed_ = false;
+};
+
+}  // namespace lpm

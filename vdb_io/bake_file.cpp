@@ -1,0 +1,221 @@
+// Writing and reading the baked VDB (see bake_file.h for the layout).
+#include "vdb_io/bake_file.h"
+
+#include <chrono>
+#include <cmath>
+
+#include <openvdb/io/File.h>
+#include <openvdb/tree/LeafManager.h>
+
+#include "core/sh.h"
+#include "vdb_io/atomic_file.h"
+#include "vdb_io/io_error.h"
+#include "vdb_io/volume_reader.h"
+
+namespace lpm {
+
+namespace {
+
+constexpr float kHalfMax = 65504.f;
+
+/// A Vec3f grid on `topo`'s topology whose active voxels take value(denseIndex).
+template <typename F>
+openvdb::Vec3SGrid::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake& b, F value) {
+    openvdb::Vec3SGrid::Ptr g = topo.deepCopy();
+    openvdb::tree::LeafManager<openvdb::Vec3STree> leaves(g->tree());
+    leaves.foreach([&](openvdb::Vec3STree::LeafNodeType& leaf, size_t) {
+        for (auto it = leaf.beginValueOn(); it; ++it) {
+            const openvdb::Coord d = it.getCoord() - b.blockMin;
+            if (d.x() < 0 || d.y() < 0 || d.z() < 0 || d.x() >= b.nx || d.y() >= b.ny || d.z() >= b.nz) continue;
+            const size_t i = size_t(d.x()) + size_t(b.nx) * (size_t(d.y()) + size_t(b.ny) * d.z());
+            it.setValue(value(i));
+        }
+    });
+    return g;
+}
+
+double maxAbs(const openvdb::Vec3SGrid& g) {
+    double m = 0;
+    for (auto it = g.cbeginValueOn(); it; ++it)
+        for (int c = 0; c < 3; ++c) m = std::max(m, double(std::fabs((*it)[c])));
+    return m;
+}
+
+}  // namespace
+
+BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b, const openvdb::MetaMap& meta,
+                          const BakeWriteOptions& o) {
+    const auto t0 = std::chrono::steady_clock::now();
+    initOpenVdb();
+    BakeWriteReport rep;
+    AtomicOutput out(o.path, o.inputs);  // checks the path before any work
+
+    // Shared topology: the input's active voxels (tiles voxelised so every grid can hold
+    // per-voxel values).
+    openvdb::Vec3SGrid::Ptr topo = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
+    topo->setTransform(density.transform().copy());
+    topo->tree().topologyUnion(density.tree());
+    topo->tree().voxelizeActiveTiles();
+    rep.voxelsWritten = topo->activeVoxelCount();
+
+    openvdb::GridPtrVec grids;
+    for (int k = 0; k < b.coeffs; ++k) {
+        openvdb::Vec3SGrid::Ptr g;
+        if (b.sh) {
+            g = fillGrid(*topo, b, [&](size_t i) {
+                const float* p = b.sh + (i * b.coeffs + k) * 3;
+                return openvdb::Vec3s(p[0], p[1], p[2]);
+            });
+        } else {
+            g = topo->deepCopy();
+        }
+        g->setName("sh_" + std::to_string(k));
+        g->setGridClass(openvdb::GRID_UNKNOWN);  // order >= 1 terms go negative: not a fog volume
+        g->setVectorType(openvdb::VEC_INVARIANT);  // colour, not a vector: DCCs must not rotate it
+        const int l = shBand(k);
+        g->insertMeta("lpm:sh_index", openvdb::Int32Metadata(k));
+        g->insertMeta("lpm:sh_l", openvdb::Int32Metadata(l));
+        g->insertMeta("lpm:sh_m", openvdb::Int32Metadata(k - l * l - l));
+        rep.maxAbsValue = std::max(rep.maxAbsValue, maxAbs(*g));
+        grids.push_back(g);
+    }
+    {
+        openvdb::Vec3SGrid::Ptr s = topo->deepCopy();
+        if (b.sh)
+            s = fillGrid(*topo, b, [&](size_t i) {
+                const float* p = b.sh + i * b.coeffs * 3;
+                const float y = float(kY00);
+                return openvdb::Vec3s(p[0] * y, p[1] * y, p[2] * y);
+            });
+        s->setName("scatter");
+        s->setGridClass(openvdb::GRID_FOG_VOLUME);
+        s->setVectorType(openvdb::VEC_INVARIANT);
+        s->insertMeta("lpm:description", openvdb::StringMetadata("direction-averaged S = sh_0 * 0.282095"));
+        grids.push_back(s);
+    }
+    if (b.emission) {
+        openvdb::Vec3SGrid::Ptr e = fillGrid(*topo, b, [&](size_t i) {
+            const RGB& c = b.emission[i];
+            return openvdb::Vec3s(c.r, c.g, c.b);
+        });
+        e->setName("emission");
+        e->setGridClass(openvdb::GRID_FOG_VOLUME);
+        e->setVectorType(openvdb::VEC_INVARIANT);
+        e->insertMeta("lpm:description", openvdb::StringMetadata("emitted radiance L_e (scaled) used by the bake"));
+        grids.push_back(e);
+    }
+    if (o.writeDensity) {
+        openvdb::FloatGrid::Ptr d = density.deepCopy();
+        d->setName(o.densityName);
+        d->setGridClass(openvdb::GRID_FOG_VOLUME);
+        grids.push_back(d);
+    }
+    if (o.half) {
+        if (rep.maxAbsValue > kHalfMax)
+            rep.warnings.push_back("--half: SH values reach " + std::to_string(rep.maxAbsValue) +
+                                   ", above the half-float maximum 65504; they will be stored as infinity");
+        for (auto& g : grids) g->setSaveFloatAsHalf(true);
+    }
+
+    try {
+        openvdb::io::File f(out.tempPath());
+        // zip rather than Blosc: Blosc version mismatches have broken reads elsewhere.
+        f.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
+        f.write(grids, meta);
+        f.close();
+        // Read the grid list back: catches short writes (disk full) before the rename.
+        openvdb::io::File check(out.tempPath());
+        check.open(false);
+        const size_t n = check.readAllGridMetadata()->size();
+        check.close();
+        if (n != grids.size())
+            throw OutputError("output", "wrote " + std::to_string(grids.size()) + " grids to '" + out.tempPath() +
+                                            "' but read back " + std::to_string(n));
+    } catch (const OutputError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw OutputError("output", "cannot write '" + out.tempPath() + "' (for '" + o.path + "'): " + e.what());
+    }
+    out.commit();
+    rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return rep;
+}
+
+BakeFile readBakeFile(const std::string& path) {
+    initOpenVdb();
+    BakeFile f;
+    f.path = path;
+    try {
+        openvdb::io::File file(path);
+        file.open(false);
+        f.meta = file.getMetadata();
+        openvdb::GridPtrVecPtr grids = file.getGrids();
+        f.grids = *grids;
+        file.close();
+    } catch (const std::exception& e) {
+        throw InputError("input", "cannot read '" + path + "' as an OpenVDB file: " + e.what());
+    }
+    f.shOrder = metaInt(*f.meta, "lpm:sh_order", -1);
+    std::string densityName = metaString(*f.meta, "lpm:density_grid", "density");
+    for (int k = 0;; ++k) {
+        openvdb::Vec3SGrid::Ptr g;
+        for (auto& base : f.grids)
+            if (base->getName() == "sh_" + std::to_string(k)) g = openvdb::gridPtrCast<openvdb::Vec3SGrid>(base);
+        if (!g) break;
+        f.sh.push_back(g);
+    }
+    for (auto& base : f.grids) {
+        if (base->getName() == "scatter") f.scatter = openvdb::gridPtrCast<openvdb::Vec3SGrid>(base);
+        if (base->getName() == "emission") f.emission = openvdb::gridPtrCast<openvdb::Vec3SGrid>(base);
+        if (base->getName() == densityName && !f.density) f.density = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
+    }
+    return f;
+}
+
+std::vector<std::string> validateBake(const BakeFile& f) {
+    std::vector<std::string> why;
+    const int version = metaInt(*f.meta, "lpm:format_version", -1);
+    if (version < 0) why.push_back("no lpm:format_version metadata (not written by lpmbake)");
+    else if (version > kBakeFormatVersion)
+        why.push_back("lpm:format_version " + std::to_string(version) + " is newer than this lpmbake reads (" +
+                      std::to_string(kBakeFormatVersion) + ")");
+    if (f.shOrder < 0 || f.shOrder > kMaxShOrder) {
+        why.push_back("missing or invalid lpm:sh_order");
+    } else if (int(f.sh.size()) < shCount(f.shOrder)) {
+        why.push_back("lpm:sh_order " + std::to_string(f.shOrder) + " needs " + std::to_string(shCount(f.shOrder)) +
+                      " Vec3f grids sh_0..sh_" + std::to_string(shCount(f.shOrder) - 1) + ", found " +
+                      std::to_string(f.sh.size()));
+    }
+    if (!f.scatter) why.push_back("no Vec3f grid named 'scatter'");
+    const std::string dn = metaString(*f.meta, "lpm:density_grid", "");
+    if (!dn.empty() && !f.density) why.push_back("lpm:density_grid names '" + dn + "' but there is no such float grid");
+    for (const auto& g : f.sh)
+        if (g->transform() != f.sh.front()->transform())
+            why.push_back("grid '" + g->getName() + "' has a different transform from sh_0");
+    return why;
+}
+
+double metaDouble(const openvdb::MetaMap& m, const std::string& key, double fallback) {
+    if (auto d = m.getMetadata<openvdb::DoubleMetadata>(key)) return d->value();
+    if (auto f = m.getMetadata<openvdb::FloatMetadata>(key)) return f->value();
+    if (auto i = m.getMetadata<openvdb::Int32Metadata>(key)) return i->value();
+    return fallback;
+}
+int metaInt(const openvdb::MetaMap& m, const std::string& key, int fallback) {
+    if (auto i = m.getMetadata<openvdb::Int32Metadata>(key)) return i->value();
+    if (auto i = m.getMetadata<openvdb::Int64Metadata>(key)) return int(i->value());
+    return fallback;
+}
+std::string metaString(const openvdb::MetaMap& m, const std::string& key, const std::string& fallback) {
+    if (auto s = m.getMetadata<openvdb::StringMetadata>(key)) return s->value();
+    return fallback;
+}
+RGB metaRgb(const openvdb::MetaMap& m, const std::string& key, const RGB& fallback) {
+    if (auto v = m.getMetadata<openvdb::Vec3DMetadata>(key))
+        return RGB(float(v->value().x()), float(v->value().y()), float(v->value().z()));
+    if (auto v = m.getMetadata<openvdb::Vec3SMetadata>(key))
+        return RGB(v->value().x(), v->value().y(), v->value().z());
+    return fallback;
+}
+
+}  // namespace lpm

@@ -1,0 +1,75 @@
+// The baked output VDB: layout, writing (atomic) and reading back (render, info, tests).
+// Layout (docs/output_format.md):
+//   sh_0 .. sh_{N-1}  Vec3f, SH coefficients of S(x, w) (ACN order, RGB in xyz),
+//                     class "unknown", VEC_INVARIANT, world-space directions
+//   scatter           Vec3f, direction-averaged S = sh_0 * Y00, class "fog volume"
+//   density           the input density (unless --no-density), class "fog volume"
+//   emission          Vec3f emitted radiance L_e used by the bake (only with --emission-grid)
+// All grids share the input density's transform and active topology. File metadata keys
+// start with "lpm:".
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <openvdb/openvdb.h>
+
+#include "core/math.h"
+
+namespace lpm {
+
+constexpr int kBakeFormatVersion = 1;
+
+/// The dense solver result and where it sits in the input's index space.
+struct DenseBake {
+    openvdb::Coord blockMin;   ///< index coordinate of dense voxel (0,0,0)
+    int nx = 0, ny = 0, nz = 0;
+    int coeffs = 1;            ///< SH coefficients per voxel
+    const float* sh = nullptr; ///< [voxel][coeff][rgb], x fastest; null for an empty bake
+    const RGB* emission = nullptr;  ///< per dense voxel, or null
+};
+
+struct BakeWriteOptions {
+    std::string path;
+    std::vector<std::string> inputs;  ///< files the output must never overwrite
+    bool half = false;                ///< store floats as 16-bit halves
+    bool writeDensity = true;
+    std::string densityName = "density";
+};
+
+struct BakeWriteReport {
+    std::vector<std::string> warnings;
+    double maxAbsValue = 0;       ///< largest |value| over the SH grids
+    std::uint64_t voxelsWritten = 0;  ///< active voxels per grid
+    double seconds = 0;
+};
+
+/// Builds the grids on `density`'s transform and topology and writes them with `meta`
+/// atomically to options.path. Throws OutputError.
+BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& bake, const openvdb::MetaMap& meta,
+                          const BakeWriteOptions& options);
+
+/// A bake read back.
+struct BakeFile {
+    std::string path;
+    openvdb::GridPtrVec grids;  ///< every grid in the file
+    openvdb::MetaMap::Ptr meta;
+    std::vector<openvdb::Vec3SGrid::Ptr> sh;  ///< sh_0 .. sh_{N-1} (as many as found in a row)
+    openvdb::Vec3SGrid::Ptr scatter, emission;
+    openvdb::FloatGrid::Ptr density;
+    int shOrder = -1;  ///< from metadata, -1 if absent
+};
+
+/// Reads every grid and the file metadata. Throws InputError if the file cannot be read.
+BakeFile readBakeFile(const std::string& path);
+
+/// Reasons `f` is not a valid lpmbake bake (empty when valid).
+std::vector<std::string> validateBake(const BakeFile& f);
+
+/// Metadata helpers: value of `key` or `fallback` when absent or of another type.
+double metaDouble(const openvdb::MetaMap& m, const std::string& key, double fallback);
+int metaInt(const openvdb::MetaMap& m, const std::string& key, int fallback);
+std::string metaString(const openvdb::MetaMap& m, const std::string& key, const std::string& fallback = "");
+RGB metaRgb(const openvdb::MetaMap& m, const std::string& key, const RGB& fallback);
+
+}  // namespace lpm

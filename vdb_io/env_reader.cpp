@@ -1,0 +1,103 @@
+// Environment images: OpenImageIO read, NaN policy, OCIO conversion, lat-long checks.
+#include "vdb_io/env_reader.h"
+
+#include <cmath>
+
+#include <OpenImageIO/imageio.h>
+
+#include "vdb_io/color.h"
+#include "vdb_io/io_error.h"
+
+namespace lpm {
+
+namespace {
+const char* kComp = "env";
+}
+
+std::vector<float> readRgbImage(const std::string& path, int& width, int& height, int& channels,
+                                std::string& fileColorSpace, std::vector<std::string>& warnings) {
+    auto in = OIIO::ImageInput::open(path);
+    if (!in) throw InputError(kComp, "cannot read image '" + path + "': " + OIIO::geterror());
+    const OIIO::ImageSpec& spec = in->spec();  // subimage 0, MIP level 0: full resolution
+    width = spec.width;
+    height = spec.height;
+    channels = spec.nchannels;
+    if (width <= 0 || height <= 0 || channels <= 0)
+        throw InputError(kComp, "image '" + path + "' is empty (" + std::to_string(width) + "x" +
+                                    std::to_string(height) + ", " + std::to_string(channels) + " channels)");
+    fileColorSpace = spec.get_string_attribute("oiio:ColorSpace");
+    if (spec.find_attribute("chromaticities"))
+        warnings.push_back("'" + path + "' has a chromaticities attribute, which lpmbake does not read; say which "
+                           "colour space the pixels are in with --env-colorspace");
+    const int nread = std::min(channels, 3);
+    std::vector<float> buf(size_t(width) * height * nread);
+    if (!in->read_image(0, 0, 0, nread, OIIO::TypeDesc::FLOAT, buf.data()))
+        throw InputError(kComp, "cannot read the pixels of '" + path + "': " + in->geterror());
+    in->close();
+    if (nread == 3) return buf;
+    // Grey (or grey + alpha): replicate the first channel.
+    std::vector<float> rgb(size_t(width) * height * 3);
+    for (size_t p = 0; p < size_t(width) * height; ++p)
+        rgb[p * 3] = rgb[p * 3 + 1] = rgb[p * 3 + 2] = buf[p * nread];
+    if (nread == 2) warnings.push_back("'" + path + "' has 2 channels: using the first as grey");
+    return rgb;
+}
+
+EnvInput readEnvironment(const EnvReadOptions& o) {
+    EnvInput out;
+    std::string fileSpace;
+    std::vector<float> rgb = readRgbImage(o.path, out.width, out.height, out.fileChannels, fileSpace, out.warnings);
+
+    // NaN/Inf first: they are a property of the pixels whatever the layout.
+    std::uint64_t bad = 0;
+    for (float& v : rgb)
+        if (!std::isfinite(v)) {
+            ++bad;
+            if (o.sanitize) v = 0.f;
+        }
+    if (bad && !o.sanitize)
+        throw InputError(kComp, "'" + o.path + "' has " + std::to_string(bad) +
+                                    " NaN or infinite pixel value(s); pass --sanitize to set them to 0");
+    if (bad)
+        out.warnings.push_back("'" + o.path + "': --sanitize set " + std::to_string(bad) +
+                               " NaN/infinite pixel value(s) to 0");
+    out.sanitized = bad;
+
+    if (out.width != 2 * out.height)
+        throw InputError(kComp, "'" + o.path + "' is " + std::to_string(out.width) + "x" + std::to_string(out.height) +
+                                    "; an environment must be a lat-long image with width = 2 x height");
+
+    if (!o.colorSpace.empty()) {
+        out.colorSpace = canonicalColorSpace(o.colorSpace);
+    } else if (colorSpaceKnown(fileSpace)) {
+        out.colorSpace = canonicalColorSpace(fileSpace);
+    } else {
+        out.colorSpace = canonicalColorSpace("lin_rec709");
+        out.warnings.push_back("'" + o.path + "' " +
+                               (fileSpace.empty() ? std::string("declares no colour space")
+                                                  : "declares colour space '" + fileSpace + "', unknown to the OCIO config") +
+                               ": reading it as lin_rec709 (set --env-colorspace)");
+    }
+    out.workingSpace = canonicalColorSpace(o.workingSpace);
+    convertColor(rgb, out.colorSpace, out.workingSpace);
+
+    // Negative values are legal in files and appear when converting out-of-gamut colours;
+    // radiance cannot be negative, so clamp them (counted, reported).
+    std::vector<RGB> pixels(size_t(out.width) * out.height);
+    for (size_t p = 0; p < pixels.size(); ++p)
+        for (int c = 0; c < 3; ++c) {
+            float v = rgb[p * 3 + c];
+            if (!std::isfinite(v)) v = 0.f;  // a conversion cannot make NaN from finite input, but be safe
+            if (v < 0) { v = 0; ++out.negativeClamped; }
+            pixels[p][c] = v;
+        }
+    if (out.negativeClamped)
+        out.warnings.push_back("'" + o.path + "': " + std::to_string(out.negativeClamped) +
+                               " negative pixel value(s) (in the file or outside the working gamut) clamped to 0");
+    if (!(o.scale >= 0) || !std::isfinite(o.scale))
+        throw InputError(kComp, "environment scale must be finite and non-negative, got " + std::to_string(o.scale));
+    out.env = std::make_unique<EnvMap>(out.width, out.height, std::move(pixels), o.rotateYDeg, o.scale);
+    return out;
+}
+
+}  // namespace lpm

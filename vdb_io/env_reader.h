@@ -1,0 +1,40 @@
+// Loads a lat-long environment image (any format OpenImageIO reads) into a core EnvMap in
+// the working colour space. Orientation: OpenEXR ImfEnvmap, +Y up (see core/envmap.h).
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/envmap.h"
+
+namespace lpm {
+
+struct EnvReadOptions {
+    std::string path;
+    std::string colorSpace;              ///< empty: the file's oiio:ColorSpace if the config knows it, else lin_rec709
+    std::string workingSpace = "ACEScg";
+    double rotateYDeg = 0.0;
+    float scale = 1.0f;
+    bool sanitize = false;               ///< NaN/Inf pixels -> 0 instead of an error
+};
+
+struct EnvInput {
+    std::unique_ptr<EnvMap> env;
+    int width = 0, height = 0, fileChannels = 0;
+    std::string colorSpace;    ///< colour space the pixels were read as (canonical name)
+    std::string workingSpace;  ///< canonical name of the working space
+    std::uint64_t sanitized = 0;       ///< NaN/Inf pixel values set to 0
+    std::uint64_t negativeClamped = 0; ///< negative values (in the file or out of gamut) set to 0
+    std::vector<std::string> warnings;
+};
+
+/// Throws InputError naming the file and the problem (size, channels, NaN count, colour space).
+EnvInput readEnvironment(const EnvReadOptions& options);
+
+/// Reads an image as packed RGB floats (first 3 channels, grey replicated), top row first,
+/// at full resolution. Throws InputError. Exposed for tests and the renderer.
+std::vector<float> readRgbImage(const std::string& path, int& width, int& height, int& channels,
+                                std::string& fileColorSpace, std::vector<std::string>& warnings);
+
+}  // namespace lpm

@@ -1,0 +1,286 @@
+// OpenVDB -> core Medium. See volume_reader.h for the conventions.
+#include "vdb_io/volume_reader.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <mutex>
+#include <sstream>
+
+#include <openvdb/io/File.h>
+#include <openvdb/tools/GridOperators.h>
+#include <openvdb/tools/Interpolation.h>
+#include <openvdb/tools/LevelSetUtil.h>
+#include <openvdb/tree/LeafManager.h>
+#include <openvdb/util/logging.h>
+
+#include "core/parallel.h"
+#include "vdb_io/io_error.h"
+
+namespace lpm {
+
+namespace {
+
+const char* kComp = "input";
+
+std::string gridClassName(const openvdb::GridBase& g) {
+    return openvdb::GridBase::gridClassToString(g.getGridClass());
+}
+
+bool isBad(float v) { return !std::isfinite(v) || v < 0.f; }
+
+/// Counts NaN/Inf/negative active values; with `fix`, sets them to 0. Tiles included.
+std::uint64_t scanBadValues(openvdb::FloatGrid& grid, bool fix, float& example) {
+    std::uint64_t bad = 0;
+    bool haveExample = false;
+    for (auto it = grid.tree().beginValueOn(); it; ++it) {
+        const float v = *it;
+        if (!isBad(v)) continue;
+        const std::uint64_t n = it.isVoxelValue() ? 1 : it.getBoundingBox().volume();
+        bad += n;
+        if (!haveExample) { example = v; haveExample = true; }
+        if (fix) it.setValue(0.f);
+    }
+    return bad;
+}
+
+openvdb::io::File openFile(const std::string& path) {
+    initOpenVdb();
+    openvdb::io::File file(path);
+    try {
+        // No delayed loading: we read only the grids we need, and never keep the input
+        // memory-mapped while the output is written.
+        file.open(false);
+    } catch (const std::exception& e) {
+        throw InputError(kComp, "cannot read '" + path + "' as an OpenVDB file: " + e.what());
+    }
+    return file;
+}
+
+std::string listGrids(const std::vector<std::string>& grids) {
+    if (grids.empty()) return "(none)";
+    std::string s;
+    for (size_t i = 0; i < grids.size(); ++i) s += (i ? ", " : "") + grids[i];
+    return s;
+}
+
+/// Reads the `index`-th grid called `name` (OpenVDB addresses duplicates as "name[N]").
+openvdb::GridBase::Ptr readNamed(openvdb::io::File& file, const std::string& path, const std::string& name,
+                                 int index, const openvdb::GridPtrVec& metas, const std::vector<std::string>& list,
+                                 std::vector<std::string>& warnings, const char* what) {
+    int count = 0;
+    for (const auto& m : metas)
+        if (m->getName() == name) ++count;
+    if (count == 0)
+        throw InputError(kComp, "'" + path + "' has no grid named '" + name + "' (" + what +
+                                    "); grids present: " + listGrids(list));
+    if (index < 0) {
+        if (count > 1)
+            warnings.push_back("'" + path + "' has " + std::to_string(count) + " grids named '" + name +
+                               "'; using the first (choose with --grid-index 0.." + std::to_string(count - 1) + ")");
+        index = 0;
+    }
+    if (index >= count)
+        throw InputError(kComp, "--grid-index " + std::to_string(index) + " is out of range: '" + path + "' has " +
+                                    std::to_string(count) + " grid(s) named '" + name + "'");
+    try {
+        return file.readGrid(index == 0 ? name : name + "[" + std::to_string(index) + "]");
+    } catch (const std::exception& e) {
+        throw InputError(kComp, "cannot read grid '" + name + "' from '" + path + "': " + e.what());
+    }
+}
+
+}  // namespace
+
+void initOpenVdb() {
+    static std::once_flag once;
+    std::call_once(once, [] {
+        openvdb::initialize();
+        // OpenVDB's own log lines (e.g. duplicate grid names) would repeat our warnings in
+        // another format; keep its errors only.
+        openvdb::logging::setLevel(openvdb::logging::Level::Error);
+    });
+}
+
+std::string describeGrid(const openvdb::GridBase& g) {
+    std::ostringstream s;
+    s << "'" << g.getName() << "' (" << g.valueType() << ", " << gridClassName(g) << ")";
+    return s.str();
+}
+
+VolumeInput readVolume(const VolumeReadOptions& o) {
+    VolumeInput out;
+    openvdb::io::File file = openFile(o.path);
+    openvdb::GridPtrVecPtr metas;
+    try {
+        metas = file.readAllGridMetadata();
+    } catch (const std::exception& e) {
+        throw InputError(kComp, "cannot read the grid list of '" + o.path + "': " + e.what());
+    }
+    for (const auto& m : *metas) out.gridsInFile.push_back(describeGrid(*m));
+
+    openvdb::GridBase::Ptr base =
+        readNamed(file, o.path, o.gridName, o.gridIndex, *metas, out.gridsInFile, out.warnings, "density");
+    const std::string where = "grid '" + o.gridName + "' in '" + o.path + "'";
+    openvdb::FloatGrid::Ptr grid = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
+    if (!grid)
+        throw InputError(kComp, where + " holds " + base->valueType() +
+                                    " values; lpmbake needs a scalar float grid (choose one with --grid; grids present: " +
+                                    listGrids(out.gridsInFile) + ")");
+    if (grid->getGridClass() == openvdb::GRID_LEVEL_SET) {
+        if (!o.convertLevelSet)
+            throw InputError(kComp, where + " is a level set (signed distance), not a density; convert it to a fog "
+                                            "volume with openvdb::tools::sdfToFogVolume (or pass --convert-level-set "
+                                            "to do so here)");
+        // sdfToFogVolume: interior 0..1 ramp over the narrow band, 1 deep inside, inactive outside.
+        openvdb::tools::sdfToFogVolume(*grid);
+        out.warnings.push_back(where + " is a level set: converted to a fog volume (tools::sdfToFogVolume)");
+    } else if (grid->getGridClass() != openvdb::GRID_FOG_VOLUME && grid->getGridClass() != openvdb::GRID_UNKNOWN) {
+        out.warnings.push_back(where + " has grid class '" + gridClassName(*grid) + "'; treating it as a density");
+    }
+
+    if (!o.emissionGrid.empty()) {
+        out.emission =
+            readNamed(file, o.path, o.emissionGrid, -1, *metas, out.gridsInFile, out.warnings, "emission");
+        if (!out.emission->isType<openvdb::FloatGrid>() && !out.emission->isType<openvdb::Vec3SGrid>())
+            throw InputError(kComp, "emission grid '" + o.emissionGrid + "' in '" + o.path + "' holds " +
+                                        out.emission->valueType() + " values; expected float or vec3s");
+    }
+    file.close();
+    gridToMedium(*grid, o, out);  // sets out.density to the (possibly sanitised) copy
+    return out;
+}
+
+void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, VolumeInput& out) {
+    // Work on a grid we may modify (sanitising); the caller's shared pointer is replaced
+    // only through out.density in readVolume, so copy when called directly.
+    openvdb::FloatGrid::Ptr grid = gridIn.deepCopy();
+    const std::string where = "grid '" + gridIn.getName() + "'" + (o.path.empty() ? "" : " in '" + o.path + "'");
+
+    if (!(o.densityScale >= 0) || !std::isfinite(o.densityScale))
+        throw InputError(kComp, "density scale must be finite and non-negative, got " + std::to_string(o.densityScale));
+    if (!grid->transform().isLinear())
+        throw InputError(kComp, where + " has a non-linear (frustum) transform; resample it to a linear transform "
+                                        "first (e.g. openvdb::tools::resampleToMatch)");
+    if (grid->background() != 0.f)
+        out.warnings.push_back(where + " has background " + std::to_string(grid->background()) +
+                               "; inactive voxels are treated as empty");
+
+    float example = 0;
+    const std::uint64_t bad = scanBadValues(*grid, o.sanitize, example);
+    if (bad > 0 && !o.sanitize) {
+        std::ostringstream s;
+        s << where << " has " << bad << " NaN, infinite or negative value(s) (e.g. " << example
+          << "); pass --sanitize to clamp them to 0";
+        throw InputError(kComp, s.str());
+    }
+    if (bad > 0)
+        out.warnings.push_back(where + ": --sanitize clamped " + std::to_string(bad) +
+                               " NaN/infinite/negative value(s) to 0");
+    out.sanitized = bad;
+    out.activeVoxels = grid->activeVoxelCount();
+
+    // Frame: index->world axis vectors give voxel sizes (lengths) and the rotation.
+    const openvdb::math::Transform& xf = grid->transform();
+    const openvdb::Vec3d o0 = xf.indexToWorld(openvdb::Vec3d(0, 0, 0));
+    openvdb::Vec3d axis[3];
+    Medium& m = out.medium;
+    for (int a = 0; a < 3; ++a) {
+        openvdb::Vec3d e(0, 0, 0);
+        e[a] = 1;
+        axis[a] = xf.indexToWorld(e) - o0;
+        m.voxelSize[a] = axis[a].length();
+        if (!(m.voxelSize[a] > 0) || !std::isfinite(m.voxelSize[a]))
+            throw InputError(kComp, where + " has a degenerate transform (voxel size " +
+                                            std::to_string(m.voxelSize[a]) + " along index axis " + std::to_string(a) + ")");
+        axis[a] /= m.voxelSize[a];
+    }
+    for (int a = 0; a < 3; ++a)
+        for (int b = a + 1; b < 3; ++b)
+            if (std::fabs(axis[a].dot(axis[b])) > 1e-5)
+                throw InputError(kComp, where + " has a sheared transform (index axes " + std::to_string(a) + " and " +
+                                                std::to_string(b) + " are not perpendicular); resample it first");
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) m.localToWorld.m[r * 3 + c] = axis[c][r];  // column c = world axis c
+
+    if (out.activeVoxels == 0) {
+        out.empty = true;
+        out.warnings.push_back(where + " has no active voxels: writing an empty bake");
+        out.density = grid;
+        return;
+    }
+    const openvdb::CoordBBox bbox = grid->evalActiveVoxelBoundingBox();
+    const int pad = std::max(0, o.pad);
+    const openvdb::Coord lo = bbox.min() - openvdb::Coord(pad);
+    const openvdb::Coord dim = bbox.dim() + openvdb::Coord(2 * pad);
+    const std::uint64_t count = std::uint64_t(dim.x()) * dim.y() * dim.z();
+    if (count > o.maxDenseVoxels)
+        throw InputError(kComp, where + ": the active bounding box needs a dense block of " + std::to_string(dim.x()) +
+                                        "x" + std::to_string(dim.y()) + "x" + std::to_string(dim.z()) + " = " +
+                                        std::to_string(count) + " voxels, above the limit of " +
+                                        std::to_string(o.maxDenseVoxels) + " (--max-voxels)");
+    m.nx = dim.x();
+    m.ny = dim.y();
+    m.nz = dim.z();
+    out.blockMin = lo;
+    const openvdb::Vec3d corner = xf.indexToWorld(openvdb::Vec3d(lo.x() - 0.5, lo.y() - 0.5, lo.z() - 0.5));
+    m.origin = {corner.x(), corner.y(), corner.z()};
+    m.sigmaT.assign(count, 0.f);
+
+    const float scale = float(o.densityScale);
+    auto put = [&](const openvdb::Coord& c, float v) {
+        const openvdb::Coord d = c - lo;
+        m.sigmaT[m.index(d.x(), d.y(), d.z())] = v * scale;
+    };
+    // Leaves in parallel (each voxel written once: no races), then active tiles.
+    openvdb::tree::LeafManager<const openvdb::FloatTree> leaves(grid->tree());
+    leaves.foreach([&](const openvdb::FloatTree::LeafNodeType& leaf, size_t) {
+        for (auto it = leaf.cbeginValueOn(); it; ++it) put(it.getCoord(), *it);
+    });
+    for (auto it = grid->tree().cbeginValueOn(); it; ++it) {
+        if (it.isVoxelValue()) continue;
+        const openvdb::CoordBBox tb = it.getBoundingBox();
+        for (auto c = tb.begin(); c; ++c) put(*c, *it);
+    }
+
+    if (out.emission) {
+        m.emission.assign(count, RGB(0.f));
+        const float es = float(o.emissionScale);
+        std::atomic<std::uint64_t> badE{0};
+        // One sampler (and accessor) per chunk of z-slices: accessors are not thread-safe.
+        auto sampleInto = [&](auto& egrid, auto toRgb) {
+            using GridT = std::decay_t<decltype(egrid)>;
+            parallelForChunks(size_t(m.nz), 1, [&](size_t z0, size_t z1) {
+                auto acc = egrid.getConstAccessor();
+                openvdb::tools::GridSampler<typename GridT::ConstAccessor, openvdb::tools::BoxSampler> s(
+                    acc, egrid.transform());
+                for (size_t z = z0; z < z1; ++z)
+                    for (int y = 0; y < m.ny; ++y)
+                        for (int x = 0; x < m.nx; ++x) {
+                            const openvdb::Vec3d w =
+                                xf.indexToWorld(openvdb::Vec3d(lo.x() + x, lo.y() + y, lo.z() + int(z)));
+                            RGB e = toRgb(s.wsSample(w)) * es;
+                            bool b = false;
+                            for (int c = 0; c < 3; ++c)
+                                if (!std::isfinite(e[c]) || e[c] < 0) { b = true; e[c] = 0; }
+                            if (b) ++badE;
+                            m.emission[m.index(x, y, int(z))] = e;
+                        }
+            });
+        };
+        if (auto f = openvdb::gridPtrCast<openvdb::FloatGrid>(out.emission))
+            sampleInto(*f, [](float v) { return RGB(v); });
+        else if (auto v = openvdb::gridPtrCast<openvdb::Vec3SGrid>(out.emission))
+            sampleInto(*v, [](const openvdb::Vec3s& c) { return RGB(c.x(), c.y(), c.z()); });
+        const std::string ew = "emission grid '" + o.emissionGrid + "'";
+        if (badE > 0 && !o.sanitize)
+            throw InputError(kComp, ew + " has NaN, infinite or negative radiance at " + std::to_string(badE.load()) +
+                                        " voxel(s) (emission scale " + std::to_string(o.emissionScale) +
+                                        "); pass --sanitize to clamp them to 0");
+        if (badE > 0)
+            out.warnings.push_back(ew + ": --sanitize clamped " + std::to_string(badE.load()) + " voxel(s) to 0");
+    }
+    out.density = grid;
+}
+
+}  // namespace lpm

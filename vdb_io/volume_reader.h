@@ -1,0 +1,63 @@
+// Reads a scalar density grid (and optionally an emission grid) from an OpenVDB file and
+// turns it into the solver's dense core Medium.
+//
+// Conventions (docs/cli.md):
+//  - the dense block is the grid's active bounding box plus `pad` voxels on every side;
+//    VDB voxel centres sit at integer index coordinates, so dense voxel (0,0,0) covers
+//    index space [blockMin - 0.5, blockMin + 0.5) and Medium::origin is the world
+//    position of index blockMin - 0.5;
+//  - sigma_t = value * densityScale, per world unit;
+//  - voxel size = lengths of the index->world axis vectors (non-cubic allowed); their
+//    directions form Medium::localToWorld;
+//  - emission: emitted radiance L_e (pbrt-v4 convention, source term sigma_a * L_e),
+//    value * emissionScale, sampled trilinearly at the dense voxel centres in world space.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <openvdb/openvdb.h>
+
+#include "core/medium.h"
+
+namespace lpm {
+
+struct VolumeReadOptions {
+    std::string path;
+    std::string gridName = "density";
+    int gridIndex = -1;              ///< among grids named gridName; -1 = not given (0, warn if several)
+    double densityScale = 1.0;
+    bool sanitize = false;           ///< clamp NaN/Inf/negative values to 0 instead of failing
+    bool convertLevelSet = false;    ///< convert a level set with tools::sdfToFogVolume
+    std::string emissionGrid;        ///< empty = none
+    double emissionScale = 1.0;
+    int pad = 1;                     ///< empty voxels added around the active bounding box
+    std::uint64_t maxDenseVoxels = 1ull << 30;  ///< refuse larger dense blocks (memory guard)
+};
+
+struct VolumeInput {
+    openvdb::FloatGrid::Ptr density;  ///< the grid the block was built from (fog volume)
+    openvdb::GridBase::Ptr emission;  ///< the emission grid as read (float or Vec3f), or null
+    Medium medium;                    ///< albedo/g left at defaults: the caller sets them
+    openvdb::Coord blockMin;          ///< index coordinate of dense voxel (0,0,0)
+    bool empty = false;               ///< no active voxels: no medium to solve
+    std::uint64_t activeVoxels = 0;
+    std::uint64_t sanitized = 0;      ///< values clamped because of --sanitize
+    std::vector<std::string> gridsInFile;  ///< "name (type)" of every grid, for messages
+    std::vector<std::string> warnings;
+};
+
+/// Throws InputError with a message naming the file, the grid and the offending value.
+VolumeInput readVolume(const VolumeReadOptions& options);
+
+/// Converts an already loaded density grid (used by readVolume and by tests).
+void gridToMedium(const openvdb::FloatGrid& grid, const VolumeReadOptions& options, VolumeInput& out);
+
+/// "file.vdb": name (type, class, N active voxels), ... of every grid (for `info` and errors).
+std::string describeGrid(const openvdb::GridBase& grid);
+
+/// Initialises OpenVDB once (thread-safe, idempotent).
+void initOpenVdb();
+
+}  // namespace lpm
