@@ -78,6 +78,10 @@ void checkOptions(const BakeOptions& o) {
     if (s.shOrder < 0 || s.shOrder > kMaxShOrder) throw UsageError("--sh-order must be in 0..3");
     if (!(s.tolerance > 0)) throw UsageError("--tolerance must be positive");
     if (s.maxOrders < 1) throw UsageError("--max-orders must be >= 1");
+    if (s.subdivide < 1 || s.subdivide > 8) throw UsageError("--subdivide must be in 1..8, got " + std::to_string(s.subdivide));
+    if (s.binsPerFace > 0 && s.directionsPerFace % s.binsPerFace != 0)
+        throw UsageError("--bins-per-face " + std::to_string(s.binsPerFace) + " must divide --directions-per-face " +
+                         std::to_string(s.directionsPerFace));
     if (!(o.envScale >= 0) || !std::isfinite(o.envScale)) throw UsageError("--env-scale must be finite and >= 0");
 }
 
@@ -272,7 +276,9 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     i32("bins_per_face", o.solver.binsPerFace);
     dbl("tolerance", o.solver.tolerance);
     i32("max_orders", o.solver.maxOrders);
-    str("solver", "Light Propagation Maps (discrete ordinates, source iteration); " +
+    i32("subdivide", o.solver.subdivide);
+    meta.insertMeta("lpm:krylov", openvdb::BoolMetadata(o.solver.krylov));
+    str("solver", "Light Propagation Maps (discrete ordinates, source iteration with GMRES acceleration); " +
                       std::to_string(res.directionCount) + " directions, " + std::to_string(res.binCount) +
                       " unshot bins");
     i32("passes", sum.passes);

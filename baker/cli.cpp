@@ -155,6 +155,7 @@ int runCli(int argc, char** argv) {
     std::string albedo = "0.9";
     std::vector<std::string> suns, sunIrr;
     std::vector<double> sunAngle;
+    bool noKrylov = false;
 
     app.add_option("input", b.input, "input OpenVDB file (positional)");
     app.add_option("-o,--output", b.output, "output VDB (written atomically; never the input)");
@@ -201,10 +202,14 @@ int runCli(int argc, char** argv) {
         ->default_val(b.solver.binsPerFace)->group(gS);
     app.add_option("--sh-order", b.solver.shOrder, "SH order of the result, 0..3")
         ->default_val(b.solver.shOrder)->group(gS);
-    app.add_option("--tolerance", b.solver.tolerance, "stop when an order scatters less than this share of the input")
+    app.add_option("--tolerance", b.solver.tolerance, "stop when the scattered power still to come is below this share of the input")
         ->default_val(b.solver.tolerance)->group(gS);
     app.add_option("--max-orders", b.solver.maxOrders, "at most this many scattering orders")
         ->default_val(b.solver.maxOrders)->group(gS);
+    app.add_option("--subdivide", b.solver.subdivide,
+                   "solve on voxels split k x k x k and average back (1..8): for optically thick voxels")
+        ->default_val(b.solver.subdivide)->group(gS);
+    app.add_flag("--no-krylov", noKrylov, "never switch to GMRES acceleration (plain source iteration)")->group(gS);
 
     auto* gO = "Output and run";
     app.add_flag("--half", b.half, "store 16-bit floats (warns when values exceed 65504)")->group(gO);
@@ -252,6 +257,7 @@ int runCli(int argc, char** argv) {
         return fail(kExitUsage, std::string("usage: ") + e.what() + " (see lpmbake --help)");
     }
 
+    if (noKrylov) b.solver.krylov = false;
     Log log;
     log.verbosity = quiet ? 0 : 1 + verbose;
     try {

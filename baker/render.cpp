@@ -169,7 +169,7 @@ void runRender(const RenderOptions& o, const Log& log) {
                     }
                 }
                 if (env) {
-                    const RGB b = env->lookup(v);
+                    const RGB b = env->lookupSmooth(v);
                     for (int ch = 0; ch < 3; ++ch) L[ch] += T * b[ch];
                 }
                 float* d = &img[(py * o.width + px) * 3];

@@ -78,6 +78,23 @@ RGB EnvMap::lookup(const Vec3& towardLight) const {
     return pixel(px, py);
 }
 
+RGB EnvMap::lookupSmooth(const Vec3& towardLight) const {
+    const Vec3 d = toImage(towardLight);
+    const double len = length(d);
+    const double lat = std::asin(std::clamp(d.y / len, -1.0, 1.0));
+    const double u = (kPi - std::atan2(d.x, d.z)) / (2 * kPi) * width_ - 0.5;
+    const double v = std::clamp((kPi / 2 - lat) / kPi * height_ - 0.5, 0.0, double(height_ - 1));
+    const int x0 = int(std::floor(u)), y0 = int(std::floor(v));
+    const double fx = u - x0, fy = v - y0;
+    const int y1 = std::min(y0 + 1, height_ - 1);
+    auto px = [&](int x, int y) { return pixel(((x % width_) + width_) % width_, y); };
+    RGB out;
+    for (int c = 0; c < 3; ++c)
+        out[c] = float((1 - fy) * ((1 - fx) * px(x0, y0)[c] + fx * px(x0 + 1, y0)[c]) +
+                       fy * ((1 - fx) * px(x0, y1)[c] + fx * px(x0 + 1, y1)[c]));
+    return out;
+}
+
 double EnvMap::pdf(const Vec3& towardLight) const {
     if (total_ <= 0) return 0;
     int px, py;

@@ -26,6 +26,9 @@ public:
 
     /// Radiance arriving from direction `towardLight` (world space, unit).
     RGB lookup(const Vec3& towardLight) const;
+    /// Bilinear interpolation between pixel centres (wrapping in longitude): for display
+    /// only (preview backgrounds). Transport uses the piecewise-constant `lookup`.
+    RGB lookupSmooth(const Vec3& towardLight) const;
 
     /// Importance-samples a direction toward the light with density proportional to
     /// the pixel's mean RGB times its solid angle. Returns radiance; pdf in 1/sr.

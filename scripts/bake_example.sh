@@ -17,7 +17,7 @@ mkdir -p out
 "$bin" data/vdb/torus01.vdb --grid voxel_fog_density \
   --env data/env/rooftop_small.hdr \
   --sun 0.3,0.8,0.5 --sun-irradiance 3 --sun-angle 0.53 \
-  --albedo 0.9 --g 0.5 --sh-order 2 \
+  --density-scale 0.04 --albedo 0.9 --g 0.5 --sh-order 2 \
   --stats out/torus01_stats.json \
   -o out/torus01_lit.vdb "$@"
 

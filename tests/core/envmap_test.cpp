@@ -80,3 +80,16 @@ TEST(EnvMap, RejectsBadPixels) {
     EXPECT_THROW(EnvMap(2, 1, {RGB(1.f), RGB(NAN)}), Error);
     EXPECT_THROW(EnvMap(2, 2, {RGB(1.f)}), Error);
 }
+
+TEST(EnvMap, SmoothLookupInterpolatesBetweenPixelCentres) {
+    const EnvMap m = codedMap();
+    // At a pixel centre the smooth lookup equals the pixel.
+    const double lat = kPi / 2 - 1.5 / 4 * kPi, lon = kPi - 2 * kPi * 2.5 / 8;
+    const Vec3 d{std::cos(lat) * std::sin(lon), std::sin(lat), std::cos(lat) * std::cos(lon)};
+    EXPECT_NEAR(m.lookupSmooth(d).r, 2.0f, 1e-4);
+    EXPECT_NEAR(m.lookupSmooth(d).g, 1.0f, 1e-4);
+    // Half-way between columns 2 and 3 (same row): the mean.
+    const double lon2 = kPi - 2 * kPi * 3.0 / 8;
+    const Vec3 e{std::cos(lat) * std::sin(lon2), std::sin(lat), std::cos(lat) * std::cos(lon2)};
+    EXPECT_NEAR(m.lookupSmooth(e).r, 2.5f, 1e-4);
+}
