@@ -189,7 +189,21 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     // 3. Solve.
     LpmResult res;
     LpmSettings settings = o.solver;
-    if (log.verbosity >= 2) settings.progress = [&](const std::string& p) { log.debug(p); };
+    // Progress: every pass with -v; otherwise, once the solve has run for a second, at
+    // most one line a second (farm logs stay short, long interactive runs show life).
+    const auto solveStart = Clock::now();
+    auto lastShown = solveStart;
+    if (log.verbosity >= 2) {
+        settings.progress = [&](const std::string& p) { log.debug(p); };
+    } else if (log.verbosity >= 1) {
+        settings.progress = [&](const std::string& p) {
+            const auto now = Clock::now();
+            if (std::chrono::duration<double>(now - solveStart).count() < 1.0) return;
+            if (lastShown != solveStart && std::chrono::duration<double>(now - lastShown).count() < 1.0) return;
+            lastShown = now;
+            log.note(p);
+        };
+    }
     t = Clock::now();
     if (!vol.empty) {
         res = solveLpm(m, lights, settings);
