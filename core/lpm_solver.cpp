@@ -282,7 +282,10 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
     if (binsPerFace < 0) {
         // Bins must nest the direction texels (b divides n), or a direction straddling a
         // bin edge is given to one side and the scattered light is skewed.
-        binsPerFace = m.g == 0.0 ? 0 : (s.directionsPerFace % 2 == 0 ? 2 : 1);
+        // Even n: 2x2 per face. n = 1 or 3: one bin per direction. Larger odd n: 1 per
+        // face, which is coarse for forward scattering (measured in docs/accuracy.md).
+        const int n = s.directionsPerFace;
+        binsPerFace = m.g == 0.0 ? 0 : (n % 2 == 0 ? 2 : (n <= 3 ? n : 1));
         res.decisions.push_back(m.g == 0.0 ? "one isotropic unshot bin: g = 0"
                                            : std::to_string(binsPerFace) + "x" + std::to_string(binsPerFace) +
                                                  " unshot bins per cube face: g = " + std::to_string(m.g));

@@ -17,7 +17,7 @@ struct LpmSettings {
     int directionsPerFace = 4;  ///< n: n x n propagation directions per cube face (6 n^2 in all)
     int raysPerVoxel = 2;       ///< ray-map rays per voxel along each lateral axis (r^2 per voxel face)
     int binsPerFace = -1;       ///< unshot bins: -1 auto (1 isotropic bin when g == 0, else 2x2 per face
-                                ///< when n is even, 1 per face when odd); must divide n;
+                                ///< when n is even, n x n for n = 1 or 3, else 1 per face); must divide n;
                                 ///< 0 = one isotropic bin, b = b x b per face
     int shOrder = 2;            ///< SH order of the result, 0..3 (forced to 0 when g == 0)
     double tolerance = 1e-3;    ///< stop when the estimated scattered power still to come / injected < tolerance
