@@ -93,7 +93,10 @@ void writeStats(const BakeOptions& o, const BakeSummary& s, const LpmResult* r) 
     j << "  \"output\": \"" << jsonEscape(o.output) << "\",\n";
     j << "  \"threads\": " << maxThreads() << ",\n";
     j << "  \"empty\": " << (s.empty ? "true" : "false") << ",\n";
-    j << "  \"voxels\": {\"active\": " << s.activeVoxels << ", \"dense\": " << s.denseVoxels << "},\n";
+    j << "  \"voxels\": {\"active\": " << s.activeVoxels << ", \"stored\": " << s.denseVoxels
+      << ", \"bounding_box\": " << s.boxVoxels << "},\n";
+    j << "  \"tiles\": {\"size\": " << Medium::kTile << ", \"stored\": " << s.tilesStored << ", \"in_box\": " << s.tilesInBox
+      << "},\n";
     j << "  \"timings_s\": {\"read\": " << s.secondsRead << ", \"environment\": " << s.secondsEnv
       << ", \"solve\": " << s.secondsSolve << ", \"write\": " << s.secondsWrite << ", \"total\": " << s.secondsTotal
       << "},\n";
@@ -156,10 +159,14 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     sum.secondsRead = since(t);
     sum.empty = vol.empty;
     sum.activeVoxels = vol.activeVoxels;
-    sum.denseVoxels = vol.medium.voxelCount();
-    log.debug("read " + o.input + ": " + std::to_string(vol.activeVoxels) + " active voxels, dense block " +
+    sum.denseVoxels = vol.empty ? 0 : vol.medium.voxelCount();
+    sum.boxVoxels = vol.empty ? 0 : vol.medium.blockVoxelCount();
+    sum.tilesInBox = vol.empty ? 0 : std::uint64_t(vol.medium.tilesX()) * vol.medium.tilesY() * vol.medium.tilesZ();
+    sum.tilesStored = vol.medium.sparse() ? vol.medium.storedTiles : sum.tilesInBox;
+    log.debug("read " + o.input + ": " + std::to_string(vol.activeVoxels) + " active voxels, block " +
               std::to_string(vol.medium.nx) + "x" + std::to_string(vol.medium.ny) + "x" +
-              std::to_string(vol.medium.nz) + ", voxel size " + fmtVec(vol.medium.voxelSize));
+              std::to_string(vol.medium.nz) + " in 8^3 tiles (" + std::to_string(sum.tilesStored) + " of " +
+              std::to_string(sum.tilesInBox) + " stored), voxel size " + fmtVec(vol.medium.voxelSize));
 
     // 2. Lights.
     t = Clock::now();
@@ -323,6 +330,7 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     db.coeffs = res.coeffs;
     db.sh = vol.empty ? nullptr : res.sh.data();
     db.emission = (!vol.empty && m.hasEmission()) ? m.emission.data() : nullptr;
+    db.layout = vol.empty ? nullptr : &m;
     BakeWriteOptions wo;
     wo.path = o.output;
     wo.inputs = {o.input, o.env};

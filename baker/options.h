@@ -68,7 +68,8 @@ struct BakeSummary {
     int shOrder = 0, passes = 0;
     double residual = 0;
     bool converged = false;
-    std::uint64_t denseVoxels = 0, activeVoxels = 0, segments = 0;
+    std::uint64_t denseVoxels = 0, activeVoxels = 0, segments = 0;  ///< denseVoxels: stored (tiled) voxels
+    std::uint64_t boxVoxels = 0, tilesStored = 0, tilesInBox = 0;
     double secondsRead = 0, secondsEnv = 0, secondsSolve = 0, secondsWrite = 0, secondsTotal = 0;
     long peakRssKiB = 0;
 };

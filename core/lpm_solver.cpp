@@ -71,6 +71,7 @@ void sweep(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
     const int a = job.axis, u = (a + 1) % 3, v = (a + 2) % 3;
     const int N[3] = {m.nx, m.ny, m.nz};
     const size_t stride[3] = {1, size_t(m.nx), size_t(m.nx) * m.ny};
+    const bool dense = !m.sparse();
     const double h[3] = {m.voxelSize.x, m.voxelSize.y, m.voxelSize.z};
     const Vec3& w = job.w;
     const double wa = std::fabs(w[a]);
@@ -118,8 +119,19 @@ void sweep(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
             for (;;) {
                 const double lamN = std::min(std::min(lamU, lamV), 1.0);
                 const double len = (lamN - lam) * sliceLen;
+                size_t vox = 0;
                 if (len > 0) {
-                    const size_t vox = base + size_t(cu) * stride[u] + size_t(cv) * stride[v];
+                    if (dense) {
+                        vox = base + size_t(cu) * stride[u] + size_t(cv) * stride[v];
+                    } else {
+                        int c3[3];
+                        c3[a] = ia;
+                        c3[u] = cu;
+                        c3[v] = cv;
+                        vox = m.index(c3[0], c3[1], c3[2]);
+                    }
+                }
+                if (len > 0 && vox != Medium::npos) {  // unallocated tiles are empty: nothing to do
                     const double s = sigma[vox];
                     const double tau = s * len;
                     float* ph = phi + vox * 3;
@@ -197,16 +209,30 @@ namespace {
 // Splits every voxel into k^3 copies of itself: the same piecewise-constant medium.
 Medium subdivided(const Medium& m, int k) {
     Medium f = m;
-    f.nx = m.nx * k;
-    f.ny = m.ny * k;
-    f.nz = m.nz * k;
     f.voxelSize = m.voxelSize / double(k);
-    f.sigmaT.assign(f.voxelCount(), 0.0f);
-    if (m.hasEmission()) f.emission.assign(f.voxelCount(), RGB(0.f));
+    if (m.sparse()) {
+        // A fine tile lies inside the coarse tile floor(fine tile / k): keep sparsity.
+        Medium probe;
+        probe.nx = m.nx * k;
+        probe.ny = m.ny * k;
+        probe.nz = m.nz * k;
+        std::vector<std::uint8_t> active(size_t(probe.tilesX()) * probe.tilesY() * probe.tilesZ(), 0);
+        for (int tz = 0; tz < probe.tilesZ(); ++tz)
+            for (int ty = 0; ty < probe.tilesY(); ++ty)
+                for (int tx = 0; tx < probe.tilesX(); ++tx) {
+                    const size_t ct = size_t(tx / k) + size_t(m.tilesX()) * (size_t(ty / k) + size_t(m.tilesY()) * (tz / k));
+                    active[size_t(tx) + size_t(probe.tilesX()) * (size_t(ty) + size_t(probe.tilesY()) * tz)] =
+                        m.tileSlot[ct] >= 0;
+                }
+        f.allocate(probe.nx, probe.ny, probe.nz, &active, m.hasEmission());
+    } else {
+        f.allocate(m.nx * k, m.ny * k, m.nz * k, nullptr, m.hasEmission());
+    }
     for (int z = 0; z < f.nz; ++z)
         for (int y = 0; y < f.ny; ++y)
             for (int x = 0; x < f.nx; ++x) {
                 const size_t src = m.index(x / k, y / k, z / k), dst = f.index(x, y, z);
+                if (src == Medium::npos || dst == Medium::npos) continue;
                 f.sigmaT[dst] = m.sigmaT[src];
                 if (m.hasEmission()) f.emission[dst] = m.emission[src];
             }
@@ -225,25 +251,27 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
         const int k = s.subdivide;
         LpmSettings fs = s;
         fs.subdivide = 1;
-        LpmResult fr = solveLpm(subdivided(m, k), lights, fs);
+        LpmResult fr = solveLpm(subdivided(m, k), lights, fs);  // (rebuilt below for lookups)
         LpmResult res = fr;
         const size_t N = m.voxelCount(), nc = size_t(fr.coeffs);
         res.sh.assign(N * nc * 3, 0.0f);
-        const Medium& c = m;
-        const int fnx = m.nx * k, fny = m.ny * k;
-        parallelForChunks(N, 1024, [&](size_t b, size_t e) {
+        const Medium fm = subdivided(m, k);  // same layout as the solve (index lookups only)
+        parallelForChunks(size_t(m.nz), 1, [&](size_t zb, size_t ze) {
             std::vector<double> acc(nc * 3);
-            for (size_t v = b; v < e; ++v) {
-                const int x = int(v % c.nx), y = int((v / c.nx) % c.ny), z = int(v / (size_t(c.nx) * c.ny));
-                std::fill(acc.begin(), acc.end(), 0.0);
-                for (int dz = 0; dz < k; ++dz)
-                    for (int dy = 0; dy < k; ++dy)
-                        for (int dx = 0; dx < k; ++dx) {
-                            const size_t fv = size_t(x * k + dx) + size_t(fnx) * (size_t(y * k + dy) + size_t(fny) * (z * k + dz));
-                            for (size_t i = 0; i < nc * 3; ++i) acc[i] += fr.sh[fv * nc * 3 + i];
-                        }
-                for (size_t i = 0; i < nc * 3; ++i) res.sh[v * nc * 3 + i] = float(acc[i] / (k * k * k));
-            }
+            for (int z = int(zb); z < int(ze); ++z)
+                for (int y = 0; y < m.ny; ++y)
+                    for (int x = 0; x < m.nx; ++x) {
+                        const size_t v = m.index(x, y, z);
+                        if (v == Medium::npos) continue;
+                        std::fill(acc.begin(), acc.end(), 0.0);
+                        for (int dz = 0; dz < k; ++dz)
+                            for (int dy = 0; dy < k; ++dy)
+                                for (int dx = 0; dx < k; ++dx) {
+                                    const size_t fv = fm.index(x * k + dx, y * k + dy, z * k + dz);
+                                    for (size_t i = 0; i < nc * 3; ++i) acc[i] += fr.sh[fv * nc * 3 + i];
+                                }
+                        for (size_t i = 0; i < nc * 3; ++i) res.sh[v * nc * 3 + i] = float(acc[i] / (k * k * k));
+                    }
         });
         res.decisions.push_back("solved on voxels split " + std::to_string(k) + "x" + std::to_string(k) + "x" +
                                 std::to_string(k) + " and averaged back");

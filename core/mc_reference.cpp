@@ -71,7 +71,8 @@ public:
             if (tMax[2] < tMax[a]) a = 2;
             const double tn = std::min(tMax[a], t1);
             const size_t vox = m_.index(idx[0], idx[1], idx[2]);
-            if (tn > t && f(vox, double(m_.sigmaT[vox]), t, tn)) return;
+            const double sg = vox == Medium::npos ? 0.0 : double(m_.sigmaT[vox]);  // unallocated tile: empty
+            if (tn > t && f(vox, sg, t, tn)) return;
             t = std::max(t, tn);
             if (t >= t1) return;
             idx[a] += step[a];
@@ -236,7 +237,8 @@ std::vector<McVoxelEstimate> mcVoxelSH(const Medium& m, const Lights& lights, co
         for (size_t vi = b; vi < e; ++vi) {
             const size_t vox = voxels[vi];
             if (vox >= m.voxelCount()) throw Error("MC", "voxel index " + std::to_string(vox) + " out of range");
-            const int ix = int(vox % m.nx), iy = int((vox / m.nx) % m.ny), iz = int(vox / (size_t(m.nx) * m.ny));
+            int ix, iy, iz;
+            m.coord(vox, ix, iy, iz);
             Pcg32 rng(s.seed, 0x9e3779b97f4a7c15ULL ^ (vox * 2 + 1));
             Welford w(size_t(nc) * 3);
             std::vector<double> acc(size_t(nc) * 3);

@@ -27,7 +27,8 @@ openvdb::Vec3SGrid::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake
         for (auto it = leaf.beginValueOn(); it; ++it) {
             const openvdb::Coord d = it.getCoord() - b.blockMin;
             if (d.x() < 0 || d.y() < 0 || d.z() < 0 || d.x() >= b.nx || d.y() >= b.ny || d.z() >= b.nz) continue;
-            const size_t i = size_t(d.x()) + size_t(b.nx) * (size_t(d.y()) + size_t(b.ny) * d.z());
+            const size_t i = b.index(d.x(), d.y(), d.z());
+            if (i == Medium::npos) continue;  // cannot happen for active voxels: their tiles are stored
             it.setValue(value(i));
         }
     });

@@ -15,6 +15,7 @@
 #include <openvdb/openvdb.h>
 
 #include "core/math.h"
+#include "core/medium.h"
 
 namespace lpm {
 
@@ -27,6 +28,12 @@ struct DenseBake {
     int coeffs = 1;            ///< SH coefficients per voxel
     const float* sh = nullptr; ///< [voxel][coeff][rgb], x fastest; null for an empty bake
     const RGB* emission = nullptr;  ///< per dense voxel, or null
+    /// Storage layout of `sh`/`emission` (sparse 8^3 tiles); null = dense, x fastest.
+    const Medium* layout = nullptr;
+    size_t index(int x, int y, int z) const {
+        if (layout) return layout->index(x, y, z);
+        return size_t(x) + size_t(nx) * (size_t(y) + size_t(ny) * z);
+    }
 };
 
 struct BakeWriteOptions {

@@ -214,18 +214,46 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
     const openvdb::Coord lo = bbox.min() - openvdb::Coord(pad);
     const openvdb::Coord dim = bbox.dim() + openvdb::Coord(2 * pad);
     const std::uint64_t count = std::uint64_t(dim.x()) * dim.y() * dim.z();
-    if (count > o.maxDenseVoxels)
-        throw InputError(kComp, where + ": the active bounding box needs a dense block of " + std::to_string(dim.x()) +
-                                        "x" + std::to_string(dim.y()) + "x" + std::to_string(dim.z()) + " = " +
-                                        std::to_string(count) + " voxels, above the limit of " +
-                                        std::to_string(o.maxDenseVoxels) + " (--max-voxels)");
-    m.nx = dim.x();
-    m.ny = dim.y();
-    m.nz = dim.z();
+    // The tile mask itself is one byte per 8^3 tile of the bounding box: refuse absurd boxes.
+    if (count / Medium::kTileVoxels > (std::uint64_t(1) << 32))
+        throw InputError(kComp, where + ": the active bounding box " + std::to_string(dim.x()) + "x" +
+                                        std::to_string(dim.y()) + "x" + std::to_string(dim.z()) +
+                                        " is too large to tile (more than 2^32 tiles of 8^3)");
+    // Dense 8^3 tiles over the block; only tiles holding an active voxel are allocated, so
+    // memory follows the active region rather than its bounding box.
+    {
+        Medium probe;
+        probe.nx = dim.x();
+        probe.ny = dim.y();
+        probe.nz = dim.z();
+        std::vector<std::uint8_t> active(size_t(probe.tilesX()) * probe.tilesY() * probe.tilesZ(), 0);
+        auto mark = [&](const openvdb::Coord& c) {
+            const openvdb::Coord d = c - lo;
+            active[size_t(d.x() / Medium::kTile) +
+                   size_t(probe.tilesX()) * (size_t(d.y() / Medium::kTile) + size_t(probe.tilesY()) * (d.z() / Medium::kTile))] = 1;
+        };
+        for (auto it = grid->tree().cbeginValueOn(); it; ++it) {
+            if (it.isVoxelValue()) {
+                mark(it.getCoord());
+            } else {
+                const openvdb::CoordBBox tb = it.getBoundingBox();
+                for (auto c = tb.begin(); c; ++c) mark(*c);
+            }
+        }
+        std::uint64_t tiles = 0;
+        for (std::uint8_t a : active) tiles += a;
+        const std::uint64_t stored = tiles * Medium::kTileVoxels;
+        if (stored > o.maxDenseVoxels)
+            throw InputError(kComp, where + ": the active region needs " + std::to_string(tiles) +
+                                            " tiles of 8^3 = " + std::to_string(stored) + " voxels (bounding box " +
+                                            std::to_string(dim.x()) + "x" + std::to_string(dim.y()) + "x" +
+                                            std::to_string(dim.z()) + "), above the limit of " +
+                                            std::to_string(o.maxDenseVoxels) + " (--max-voxels)");
+        m.allocate(dim.x(), dim.y(), dim.z(), &active, out.emission != nullptr);
+    }
     out.blockMin = lo;
     const openvdb::Vec3d corner = xf.indexToWorld(openvdb::Vec3d(lo.x() - 0.5, lo.y() - 0.5, lo.z() - 0.5));
     m.origin = {corner.x(), corner.y(), corner.z()};
-    m.sigmaT.assign(count, 0.f);
 
     const float scale = float(o.densityScale);
     auto put = [&](const openvdb::Coord& c, float v) {
@@ -244,7 +272,6 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
     }
 
     if (out.emission) {
-        m.emission.assign(count, RGB(0.f));
         const float es = float(o.emissionScale);
         std::atomic<std::uint64_t> badE{0};
         // One sampler (and accessor) per chunk of z-slices: accessors are not thread-safe.
@@ -257,6 +284,8 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
                 for (size_t z = z0; z < z1; ++z)
                     for (int y = 0; y < m.ny; ++y)
                         for (int x = 0; x < m.nx; ++x) {
+                            const size_t vi = m.index(x, y, int(z));
+                            if (vi == Medium::npos) continue;  // unallocated tile
                             const openvdb::Vec3d w =
                                 xf.indexToWorld(openvdb::Vec3d(lo.x() + x, lo.y() + y, lo.z() + int(z)));
                             RGB e = toRgb(s.wsSample(w)) * es;
@@ -264,7 +293,7 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
                             for (int c = 0; c < 3; ++c)
                                 if (!std::isfinite(e[c]) || e[c] < 0) { b = true; e[c] = 0; }
                             if (b) ++badE;
-                            m.emission[m.index(x, y, int(z))] = e;
+                            m.emission[vi] = e;
                         }
             });
         };

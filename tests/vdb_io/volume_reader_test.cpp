@@ -71,6 +71,30 @@ TEST(VolumeReader, BlockOriginVoxelSizeAndValues) {
 }
 
 // The rotation part of the transform becomes localToWorld (columns = world index axes).
+TEST(VolumeReader, MemoryFollowsActiveTilesNotTheBoundingBox) {
+    // Two 5^3 puffs 300 voxels apart: the bounding box is ~300^3 = 27M voxels, but only
+    // the 8^3 tiles that hold active voxels are stored.
+    initOpenVdb();
+    const std::string dir = lpmtest::scratchDir();
+    auto g = openvdb::FloatGrid::create(0.f);
+    g->setName("density");
+    g->fill(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(4)), 0.5f, true);
+    g->fill(openvdb::CoordBBox(openvdb::Coord(300), openvdb::Coord(304)), 0.25f, true);
+    g->tree().voxelizeActiveTiles();
+    lpmtest::writeVdb(dir + "/far.vdb", {g});
+    const VolumeInput v = readVolume(opts(dir + "/far.vdb"));
+    const Medium& m = v.medium;
+    EXPECT_TRUE(m.sparse());
+    EXPECT_GT(m.blockVoxelCount(), 27000000u);
+    EXPECT_LE(m.voxelCount(), 16 * Medium::kTileVoxels);  // at most 8 tiles per puff (pad may straddle)
+    double optical = 0;
+    for (float s : m.sigmaT) optical += s;
+    EXPECT_NEAR(optical, 125 * 0.5 + 125 * 0.25, 1e-4);
+    EXPECT_FLOAT_EQ(m.sigmaT[m.index(1 + 2, 1 + 2, 1 + 2)], 0.5f);      // index (2,2,2), pad 1
+    EXPECT_EQ(m.index(150, 150, 150), Medium::npos);
+    EXPECT_NO_THROW(m.validate());
+}
+
 TEST(VolumeReader, RotatedTransformGivesLocalToWorld) {
     initOpenVdb();
     auto g = lpmtest::cubeGrid(3, 1.f, 0.25);
