@@ -147,6 +147,7 @@ OUTPUT
 EXAMPLES
   lpmbake cloud.vdb --env sky.exr --sun 0.3,0.8,0.5 --sun-irradiance 5 -o cloud_lit.vdb
   lpmbake torus.vdb --grid voxel_fog_density --env sky.hdr --g 0.6 --sh-order 2 -o out.vdb
+  lpmbake torus.vdb --grid voxel_fog_density --env sky.hdr --solve-scale 0.5 -o preview.vdb
   lpmbake render out.vdb --eye 0,0,8 --target 0,0,0 --fov-y 40 --size 512x512 -o out.png
   lpmbake info out.vdb)";
 

@@ -177,6 +177,7 @@ TEST(SolveScale, BadValuesAreUsageErrors) {
         EXPECT_NE(r.err.find(v), std::string::npos) << "names the value: " << r.err;
     }
     EXPECT_FALSE(std::filesystem::exists(out));
+    EXPECT_NE(runLpmbake({"--help"}, dir).out.find("--solve-scale"), std::string::npos);
     // The largest scale passes validation, and the solve block is held to --max-voxels:
     // the torus's 24x11x24 block at S = 1 fits in 100000 voxels, its ~178x74x178 at S = 8
     // does not.
