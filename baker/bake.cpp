@@ -32,6 +32,13 @@ std::string fmt(double v) {
 }
 std::string fmtRgb(const RGB& c) { return fmt(c.r) + "," + fmt(c.g) + "," + fmt(c.b); }
 std::string fmtVec(const Vec3& v) { return fmt(v.x) + "," + fmt(v.y) + "," + fmt(v.z); }
+/// One number for cubic voxels, X,Y,Z otherwise.
+std::string fmtVoxelSize(const Vec3& v) {
+    return fmt(v.x) == fmt(v.y) && fmt(v.y) == fmt(v.z) ? fmt(v.x) : fmtVec(v);
+}
+std::string fmtDims(const int d[3]) {
+    return std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" + std::to_string(d[2]);
+}
 
 long peakRssKiB() {
     struct rusage u {};
@@ -78,6 +85,11 @@ void checkOptions(const BakeOptions& o) {
     if (s.shOrder < 0 || s.shOrder > kMaxShOrder) throw UsageError("--sh-order must be in 0..3");
     if (!(s.tolerance > 0)) throw UsageError("--tolerance must be positive");
     if (s.maxOrders < 1) throw UsageError("--max-orders must be >= 1");
+    // Below 0.05 a solve voxel spans more than 20 input voxels (nothing of the volume's
+    // shape survives); above 8 the block grows 512x for no added detail (the medium is
+    // piecewise constant on the input's voxels).
+    if (!std::isfinite(o.solveScale) || o.solveScale < 0.05 || o.solveScale > 8)
+        throw UsageError("--solve-scale must be finite and in [0.05, 8], got " + fmt(o.solveScale));
     if (s.subdivide < 1 || s.subdivide > 8) throw UsageError("--subdivide must be in 1..8, got " + std::to_string(s.subdivide));
     if (s.binsPerFace > 0 && s.directionsPerFace % s.binsPerFace != 0)
         throw UsageError("--bins-per-face " + std::to_string(s.binsPerFace) + " must divide --directions-per-face " +
@@ -97,6 +109,9 @@ void writeStats(const BakeOptions& o, const BakeSummary& s, const LpmResult* r) 
       << ", \"bounding_box\": " << s.boxVoxels << "},\n";
     j << "  \"tiles\": {\"size\": " << Medium::kTile << ", \"stored\": " << s.tilesStored << ", \"in_box\": " << s.tilesInBox
       << "},\n";
+    j << "  \"solve_grid\": {\"solve_scale\": " << s.solveScale << ", \"dims\": [" << s.solveDims[0] << ", "
+      << s.solveDims[1] << ", " << s.solveDims[2] << "], \"voxel_size\": [" << s.solveVoxelSize.x << ", "
+      << s.solveVoxelSize.y << ", " << s.solveVoxelSize.z << "]},\n";
     j << "  \"timings_s\": {\"read\": " << s.secondsRead << ", \"environment\": " << s.secondsEnv
       << ", \"solve\": " << s.secondsSolve << ", \"write\": " << s.secondsWrite << ", \"total\": " << s.secondsTotal
       << "},\n";
@@ -154,6 +169,7 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     vo.emissionGrid = o.emissionGrid;
     vo.emissionScale = o.emissionScale;
     vo.maxDenseVoxels = o.maxVoxels;
+    vo.solveScale = o.solveScale;
     VolumeInput vol = readVolume(vo);
     for (const auto& w : vol.warnings) log.warn(w);
     sum.secondsRead = since(t);
@@ -163,6 +179,16 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     sum.boxVoxels = vol.empty ? 0 : vol.medium.blockVoxelCount();
     sum.tilesInBox = vol.empty ? 0 : std::uint64_t(vol.medium.tilesX()) * vol.medium.tilesY() * vol.medium.tilesZ();
     sum.tilesStored = vol.medium.sparse() ? vol.medium.storedTiles : sum.tilesInBox;
+    sum.solveScale = o.solveScale;
+    sum.solveDims[0] = vol.medium.nx;
+    sum.solveDims[1] = vol.medium.ny;
+    sum.solveDims[2] = vol.medium.nz;
+    // An empty input has no block; the reader then leaves the input's voxel size.
+    sum.solveVoxelSize = vol.empty ? vol.medium.voxelSize * (1.0 / o.solveScale) : vol.medium.voxelSize;
+    if (o.solveScale != 1.0 && !vol.empty)
+        log.note("solve grid " + fmtDims(sum.solveDims) + " at voxel size " + fmtVoxelSize(sum.solveVoxelSize) +
+                 " (--solve-scale " + fmt(o.solveScale) + "; input voxel size " +
+                 fmtVoxelSize(vol.medium.voxelSize * o.solveScale) + ")");
     log.debug("read " + o.input + ": " + std::to_string(vol.activeVoxels) + " active voxels, block " +
               std::to_string(vol.medium.nx) + "x" + std::to_string(vol.medium.ny) + "x" +
               std::to_string(vol.medium.nz) + " in 8^3 tiles (" + std::to_string(sum.tilesStored) + " of " +
@@ -298,6 +324,11 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     dbl("tolerance", o.solver.tolerance);
     i32("max_orders", o.solver.maxOrders);
     i32("subdivide", o.solver.subdivide);
+    dbl("solve_scale", o.solveScale);
+    meta.insertMeta("lpm:solve_grid_dims",
+                    openvdb::Vec3IMetadata(openvdb::Vec3i(sum.solveDims[0], sum.solveDims[1], sum.solveDims[2])));
+    meta.insertMeta("lpm:solve_voxel_size", openvdb::Vec3DMetadata(openvdb::Vec3d(
+                                                 sum.solveVoxelSize.x, sum.solveVoxelSize.y, sum.solveVoxelSize.z)));
     meta.insertMeta("lpm:krylov", openvdb::BoolMetadata(o.solver.krylov));
     str("solver", "Light Propagation Maps (discrete ordinates, source iteration with GMRES acceleration); " +
                       std::to_string(res.directionCount) + " directions, " + std::to_string(res.binCount) +
@@ -324,6 +355,8 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     // 5. Write.
     DenseBake db;
     db.blockMin = vol.blockMin;
+    db.scale = vol.solveGrid.scale;
+    db.corner = vol.solveGrid.corner;
     db.nx = m.nx;
     db.ny = m.ny;
     db.nz = m.nz;

@@ -43,6 +43,17 @@ std::vector<double> parseNumbers(const std::string& s, const std::string& opt) {
     return v;
 }
 
+/// One number; "nan" and "inf" parse (checkOptions then names them as out of range).
+double parseNumber(const std::string& s, const std::string& opt) {
+    try {
+        size_t used = 0;
+        const double v = std::stod(s, &used);
+        if (used == s.size()) return v;
+    } catch (const std::exception&) {
+    }
+    throw UsageError(opt + " expects a number, got '" + s + "'");
+}
+
 Vec3 parseVec3(const std::string& s, const std::string& opt) {
     const auto v = parseNumbers(s, opt);
     if (v.size() != 3) throw UsageError(opt + " expects X,Y,Z, got '" + s + "'");
@@ -136,6 +147,7 @@ OUTPUT
 EXAMPLES
   lpmbake cloud.vdb --env sky.exr --sun 0.3,0.8,0.5 --sun-irradiance 5 -o cloud_lit.vdb
   lpmbake torus.vdb --grid voxel_fog_density --env sky.hdr --g 0.6 --sh-order 2 -o out.vdb
+  lpmbake torus.vdb --grid voxel_fog_density --env sky.hdr --solve-scale 0.5 -o preview.vdb
   lpmbake render out.vdb --eye 0,0,8 --target 0,0,0 --fov-y 40 --size 512x512 -o out.png
   lpmbake info out.vdb)";
 
@@ -156,6 +168,7 @@ int runCli(int argc, char** argv) {
     std::vector<std::string> suns, sunIrr;
     std::vector<double> sunAngle;
     bool noKrylov = false;
+    std::string solveScale = "1";
 
     app.add_option("input", b.input, "input OpenVDB file (positional)");
     app.add_option("-o,--output", b.output, "output VDB (written atomically; never the input)");
@@ -210,6 +223,13 @@ int runCli(int argc, char** argv) {
                    "solve on voxels split k x k x k and average back (1..8): for optically thick voxels")
         ->default_val(b.solver.subdivide)->group(gS);
     app.add_flag("--no-krylov", noKrylov, "never switch to GMRES acceleration (plain source iteration)")->group(gS);
+    // Read as text and converted here: CLI11 would refuse "nan" without naming the allowed
+    // range; checkOptions names the value and the range.
+    app.add_option("--solve-scale", solveScale,
+                   "S: solve on a grid with the input's axes and voxel size / S, S in [0.05, 8] (0.5: half the "
+                   "resolution, 2: twice; 1: the input's voxels); results are interpolated back onto the "
+                   "input's voxels")
+        ->default_val("1")->type_name("FLOAT")->group(gS);
 
     auto* gO = "Output and run";
     app.add_flag("--half", b.half, "store 16-bit floats (warns when values exceed 65504)")->group(gO);
@@ -275,6 +295,7 @@ int runCli(int argc, char** argv) {
 
         if (b.input.empty()) throw UsageError("no input VDB given (lpmbake IN.vdb --env SKY.exr -o OUT.vdb)");
         b.albedo = parseRgb(albedo, "--albedo");
+        b.solveScale = parseNumber(solveScale, "--solve-scale");
         if (!sunIrr.empty() && sunIrr.size() != 1 && sunIrr.size() != suns.size())
             throw UsageError("--sun-irradiance given " + std::to_string(sunIrr.size()) + " times for " +
                              std::to_string(suns.size()) + " --sun: give it once or once per sun");

@@ -59,6 +59,7 @@ struct BakeOptions {
     bool half = false;
     bool noDensity = false;
     std::uint64_t maxVoxels = 1ull << 30;
+    double solveScale = 1.0;  ///< solve voxels per input voxel along each axis, in [0.05, 8]
     std::string statsPath;
     std::string commandLine;  ///< recorded in the metadata
 };
@@ -70,6 +71,9 @@ struct BakeSummary {
     bool converged = false;
     std::uint64_t denseVoxels = 0, activeVoxels = 0, segments = 0;  ///< denseVoxels: stored (tiled) voxels
     std::uint64_t boxVoxels = 0, tilesStored = 0, tilesInBox = 0;
+    double solveScale = 1.0;
+    int solveDims[3] = {0, 0, 0};  ///< the solve block (0 for an empty bake)
+    Vec3 solveVoxelSize{0, 0, 0};  ///< its voxel size, world units (input voxel size / solveScale)
     double secondsRead = 0, secondsEnv = 0, secondsSolve = 0, secondsWrite = 0, secondsTotal = 0;
     long peakRssKiB = 0;
 };

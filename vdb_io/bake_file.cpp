@@ -1,6 +1,7 @@
 // Writing and reading the baked VDB (see bake_file.h for the layout).
 #include "vdb_io/bake_file.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -18,11 +19,52 @@ namespace {
 
 constexpr float kHalfMax = 65504.f;
 
-/// A Vec3f grid on `topo`'s topology whose active voxels take value(denseIndex).
+/// Trilinear weights of the dense block at an input voxel: 8 dense indices and weights.
+struct Stencil {
+    size_t index[8];
+    float weight[8];
+};
+
+/// Where input voxel `c` (centre at index c) falls between the block's voxel centres: the
+/// continuous dense coordinate is (c - corner) * scale - 0.5; outside the outermost centres
+/// the value is clamped (the border voxel's value, not an extrapolation).
+Stencil stencilAt(const DenseBake& b, const openvdb::Coord& c) {
+    const int n[3] = {b.nx, b.ny, b.nz};
+    int i0[3], i1[3];
+    float t[3];
+    for (int a = 0; a < 3; ++a) {
+        const double u = std::clamp((c[a] - b.corner[a]) * b.scale - 0.5, 0.0, double(n[a] - 1));
+        i0[a] = std::min(int(std::floor(u)), std::max(0, n[a] - 2));
+        i1[a] = std::min(i0[a] + 1, n[a] - 1);
+        t[a] = float(u - i0[a]);
+    }
+    Stencil s;
+    for (int k = 0; k < 8; ++k) {
+        const int x = (k & 1) ? i1[0] : i0[0], y = (k & 2) ? i1[1] : i0[1], z = (k & 4) ? i1[2] : i0[2];
+        s.index[k] = size_t(x) + size_t(b.nx) * (size_t(y) + size_t(b.ny) * z);
+        s.weight[k] = ((k & 1) ? t[0] : 1 - t[0]) * ((k & 2) ? t[1] : 1 - t[1]) * ((k & 4) ? t[2] : 1 - t[2]);
+    }
+    return s;
+}
+
+/// A Vec3f grid on `topo`'s topology whose active voxels take value(denseIndex) (scale 1:
+/// the dense voxel holding the input voxel; otherwise interpolated between dense voxels).
 template <typename F>
 openvdb::Vec3SGrid::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake& b, F value) {
     openvdb::Vec3SGrid::Ptr g = topo.deepCopy();
     openvdb::tree::LeafManager<openvdb::Vec3STree> leaves(g->tree());
+    if (b.scale != 1.0) {
+        leaves.foreach([&](openvdb::Vec3STree::LeafNodeType& leaf, size_t) {
+            for (auto it = leaf.beginValueOn(); it; ++it) {
+                const Stencil s = stencilAt(b, it.getCoord());
+                openvdb::Vec3s v(0.f);
+                for (int k = 0; k < 8; ++k)
+                    if (s.weight[k] != 0.f) v += value(s.index[k]) * s.weight[k];
+                it.setValue(v);
+            }
+        });
+        return g;
+    }
     leaves.foreach([&](openvdb::Vec3STree::LeafNodeType& leaf, size_t) {
         for (auto it = leaf.beginValueOn(); it; ++it) {
             const openvdb::Coord d = it.getCoord() - b.blockMin;

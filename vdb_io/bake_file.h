@@ -22,8 +22,14 @@ namespace lpm {
 constexpr int kBakeFormatVersion = 1;
 
 /// The dense solver result and where it sits in the input's index space.
+/// scale == 1: dense voxel d holds the value of input voxel blockMin + d (direct lookup).
+/// scale != 1 (--solve-scale): dense voxel d covers index space [corner + d / scale,
+/// corner + (d + 1) / scale); an input voxel gets the trilinear interpolation of the dense
+/// voxel-centred values at its centre, clamped at the block's border.
 struct DenseBake {
-    openvdb::Coord blockMin;   ///< index coordinate of dense voxel (0,0,0)
+    openvdb::Coord blockMin;   ///< index coordinate of dense voxel (0,0,0) (scale 1)
+    double scale = 1.0;        ///< dense voxels per input voxel along each axis
+    openvdb::Vec3d corner{0.0, 0.0, 0.0};  ///< index-space low corner of the block (scale != 1)
     int nx = 0, ny = 0, nz = 0;
     int coeffs = 1;            ///< SH coefficients per voxel
     const float* sh = nullptr; ///< [voxel][coeff][rgb], x fastest; null for an empty bake

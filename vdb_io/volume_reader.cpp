@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <iomanip>
 #include <mutex>
 #include <sstream>
 
@@ -87,6 +88,166 @@ openvdb::GridBase::Ptr readNamed(openvdb::io::File& file, const std::string& pat
         return file.readGrid(index == 0 ? name : name + "[" + std::to_string(index) + "]");
     } catch (const std::exception& e) {
         throw InputError(kComp, "cannot read grid '" + name + "' from '" + path + "': " + e.what());
+    }
+}
+
+/// Fills out.medium.emission (the block's dimensions are set): each dense voxel gets the
+/// mean of k^3 trilinear samples of the emission grid at pos(x, y, z, jx, jy, jz) (world
+/// space), times the emission scale. NaN/negative samples are errors unless sanitising.
+template <typename PosFn>
+void sampleEmission(const VolumeReadOptions& o, VolumeInput& out, PosFn pos, int k) {
+    Medium& m = out.medium;
+    m.emission.assign(m.voxelCount(), RGB(0.f));
+    const float es = float(o.emissionScale);
+    const float inv = 1.f / float(k * k * k);
+    std::atomic<std::uint64_t> badE{0};
+    // One sampler (and accessor) per chunk of z-slices: accessors are not thread-safe.
+    auto sampleInto = [&](auto& egrid, auto toRgb) {
+        using GridT = std::decay_t<decltype(egrid)>;
+        parallelForChunks(size_t(m.nz), 1, [&](size_t z0, size_t z1) {
+            auto acc = egrid.getConstAccessor();
+            openvdb::tools::GridSampler<typename GridT::ConstAccessor, openvdb::tools::BoxSampler> s(
+                acc, egrid.transform());
+            auto sample = [&](const openvdb::Vec3d& w, bool& bad) {
+                RGB e = toRgb(s.wsSample(w)) * es;
+                for (int c = 0; c < 3; ++c)
+                    if (!std::isfinite(e[c]) || e[c] < 0) { bad = true; e[c] = 0; }
+                return e;
+            };
+            for (size_t z = z0; z < z1; ++z)
+                for (int y = 0; y < m.ny; ++y)
+                    for (int x = 0; x < m.nx; ++x) {
+                        const size_t vi = m.index(x, y, int(z));
+                        if (vi == Medium::npos) continue;  // unallocated (empty) tile
+                        bool b = false;
+                        RGB e;
+                        if (k == 1) {
+                            e = sample(pos(x, y, int(z), 0, 0, 0), b);  // exactly the voxel-centre sample
+                        } else {
+                            for (int jz = 0; jz < k; ++jz)
+                                for (int jy = 0; jy < k; ++jy)
+                                    for (int jx = 0; jx < k; ++jx) e += sample(pos(x, y, int(z), jx, jy, jz), b);
+                            e = e * inv;
+                        }
+                        if (b) ++badE;
+                        m.emission[vi] = e;
+                    }
+        });
+    };
+    if (auto f = openvdb::gridPtrCast<openvdb::FloatGrid>(out.emission))
+        sampleInto(*f, [](float v) { return RGB(v); });
+    else if (auto v = openvdb::gridPtrCast<openvdb::Vec3SGrid>(out.emission))
+        sampleInto(*v, [](const openvdb::Vec3s& c) { return RGB(c.x(), c.y(), c.z()); });
+    const std::string ew = "emission grid '" + o.emissionGrid + "'";
+    if (badE > 0 && !o.sanitize)
+        throw InputError(kComp, ew + " has NaN, infinite or negative radiance at " + std::to_string(badE.load()) +
+                                    " voxel(s) (emission scale " + std::to_string(o.emissionScale) +
+                                    "); pass --sanitize to clamp them to 0");
+    if (badE > 0) out.warnings.push_back(ew + ": --sanitize clamped " + std::to_string(badE.load()) + " voxel(s) to 0");
+}
+
+/// An input voxel (index along one axis) and its weight in a solve voxel.
+struct Tap {
+    int index;
+    double weight;
+};
+
+/// --solve-scale S != 1: builds out.medium on a grid with the input's axes and voxel size
+/// / S (out.medium's voxelSize and localToWorld hold the input's on entry). See
+/// volume_reader.h for the placement and the resampling rules.
+void resampleToSolveGrid(const openvdb::FloatGrid& grid, const openvdb::CoordBBox& bbox, int pad,
+                         const VolumeReadOptions& o, const std::string& where, VolumeInput& out) {
+    const double S = o.solveScale;
+    Medium& m = out.medium;
+    const openvdb::math::Transform& xf = grid.transform();
+
+    // Solve voxels per axis: enough to cover the bounding box (the 1e-6 keeps e.g. 10 * 0.3
+    // = 3.0000000000000004 from adding a voxel), plus the pad on both sides. Computed in
+    // double so that a huge S * extent is refused below rather than overflowing an int.
+    double dims[3];
+    for (int a = 0; a < 3; ++a) dims[a] = std::max(1.0, std::ceil(double(bbox.dim()[a]) * S - 1e-6)) + 2.0 * pad;
+    const double count = dims[0] * dims[1] * dims[2];
+    if (count > double(o.maxDenseVoxels)) {
+        std::ostringstream msg;
+        msg << where << ": --solve-scale " << S << " needs a dense solve block of " << std::fixed
+            << std::setprecision(0) << dims[0] << "x" << dims[1] << "x" << dims[2] << " = " << count
+            << " voxels, above the limit of " << o.maxDenseVoxels << " (--max-voxels); use a smaller --solve-scale";
+        throw InputError(kComp, msg.str());
+    }
+    m.nx = int(dims[0]);
+    m.ny = int(dims[1]);
+    m.nz = int(dims[2]);
+    openvdb::Vec3d c0;
+    for (int a = 0; a < 3; ++a) {
+        c0[a] = bbox.min()[a] - 0.5 - pad / S;
+        m.voxelSize[a] /= S;
+    }
+    out.blockMin = bbox.min() - openvdb::Coord(pad);  // not used for S != 1; kept meaningful
+    out.solveGrid.scale = S;
+    out.solveGrid.corner = c0;
+    const openvdb::Vec3d corner = xf.indexToWorld(c0);
+    m.origin = {corner.x(), corner.y(), corner.z()};
+
+    // Per axis, the input voxels each solve voxel reads and their weights. The 3D weights
+    // are products (the voxels are boxes on the same axes). Only the active bounding box
+    // can hold active values, so taps outside it are dropped.
+    std::vector<std::vector<Tap>> taps[3];
+    for (int a = 0; a < 3; ++a) {
+        const int n = m.dim(a), bmin = bbox.min()[a], bmax = bbox.max()[a];
+        taps[a].resize(size_t(n));
+        for (int s = 0; s < n; ++s) {
+            if (S < 1) {
+                // The mean over the solve voxel of the piecewise-constant input (what
+                // point sub-samples with nearest-voxel lookups converge to): input voxel i
+                // covers [i - 0.5, i + 0.5) and weighs its overlap / the solve voxel's width.
+                // Every input voxel's overlaps sum to its width, so optical depth is kept.
+                const double lo = c0[a] + s / S, hi = c0[a] + (s + 1) / S;
+                const int i0 = std::max(bmin, int(std::floor(lo + 0.5)));
+                const int i1 = std::min(bmax, int(std::floor(hi + 0.5)));
+                for (int i = i0; i <= i1; ++i) {
+                    const double w = (std::min(hi, i + 0.5) - std::max(lo, i - 0.5)) * S;
+                    if (w > 0) taps[a][size_t(s)].push_back({i, w});
+                }
+            } else {
+                // Piecewise constant: the input voxel containing the solve voxel's centre.
+                const int i = int(std::floor(c0[a] + (s + 0.5) / S + 0.5));
+                if (i >= bmin && i <= bmax) taps[a][size_t(s)].push_back({i, 1.0});
+            }
+        }
+    }
+
+    m.sigmaT.assign(m.voxelCount(), 0.f);
+    // Gather per solve voxel (each written once: no races; sums in a fixed order, so the
+    // result does not depend on the thread count). Inactive voxels count as empty, as at S = 1.
+    parallelForChunks(size_t(m.nz), 1, [&](size_t z0, size_t z1) {
+        auto acc = grid.getConstAccessor();
+        for (size_t z = z0; z < z1; ++z)
+            for (int y = 0; y < m.ny; ++y)
+                for (int x = 0; x < m.nx; ++x) {
+                    double sum = 0;
+                    for (const Tap& tz : taps[2][z])
+                        for (const Tap& ty : taps[1][size_t(y)]) {
+                            double row = 0;
+                            for (const Tap& tx : taps[0][size_t(x)]) {
+                                float v = 0;
+                                if (acc.probeValue(openvdb::Coord(tx.index, ty.index, tz.index), v))
+                                    row += tx.weight * double(v);
+                            }
+                            sum += tz.weight * ty.weight * row;
+                        }
+                    m.sigmaT[m.index(x, y, int(z))] = float(sum * o.densityScale);
+                }
+    });
+
+    if (out.emission) {
+        // S < 1: the mean of ceil(1/S)^3 stratified sub-samples (the emission grid may have
+        // its own transform, so there is no exact overlap to use); S > 1: the centre sample.
+        const int k = S < 1 ? int(std::ceil(1.0 / S - 1e-9)) : 1;
+        sampleEmission(o, out, [&](int x, int y, int z, int jx, int jy, int jz) {
+            const openvdb::Vec3d p(c0[0] + (x + (jx + 0.5) / k) / S, c0[1] + (y + (jy + 0.5) / k) / S,
+                                   c0[2] + (z + (jz + 0.5) / k) / S);
+            return xf.indexToWorld(p);
+        }, k);
     }
 }
 
@@ -211,6 +372,14 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
     }
     const openvdb::CoordBBox bbox = grid->evalActiveVoxelBoundingBox();
     const int pad = std::max(0, o.pad);
+    const double S = o.solveScale;
+    if (!(S > 0) || !std::isfinite(S))
+        throw InputError(kComp, "solve scale must be positive and finite, got " + std::to_string(S));
+    if (S != 1.0) {
+        resampleToSolveGrid(*grid, bbox, pad, o, where, out);
+        out.density = grid;
+        return;
+    }
     const openvdb::Coord lo = bbox.min() - openvdb::Coord(pad);
     const openvdb::Coord dim = bbox.dim() + openvdb::Coord(2 * pad);
     const std::uint64_t count = std::uint64_t(dim.x()) * dim.y() * dim.z();
@@ -248,10 +417,13 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
                                             " tiles of 8^3 = " + std::to_string(stored) + " voxels (bounding box " +
                                             std::to_string(dim.x()) + "x" + std::to_string(dim.y()) + "x" +
                                             std::to_string(dim.z()) + "), above the limit of " +
-                                            std::to_string(o.maxDenseVoxels) + " (--max-voxels)");
-        m.allocate(dim.x(), dim.y(), dim.z(), &active, out.emission != nullptr);
+                                            std::to_string(o.maxDenseVoxels) +
+                                            " (--max-voxels; or solve on a coarser grid with --solve-scale below 1)");
+        m.allocate(dim.x(), dim.y(), dim.z(), &active);
     }
     out.blockMin = lo;
+    out.solveGrid.scale = 1.0;
+    out.solveGrid.corner = openvdb::Vec3d(lo.x() - 0.5, lo.y() - 0.5, lo.z() - 0.5);
     const openvdb::Vec3d corner = xf.indexToWorld(openvdb::Vec3d(lo.x() - 0.5, lo.y() - 0.5, lo.z() - 0.5));
     m.origin = {corner.x(), corner.y(), corner.z()};
 
@@ -271,44 +443,10 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
         for (auto c = tb.begin(); c; ++c) put(*c, *it);
     }
 
-    if (out.emission) {
-        const float es = float(o.emissionScale);
-        std::atomic<std::uint64_t> badE{0};
-        // One sampler (and accessor) per chunk of z-slices: accessors are not thread-safe.
-        auto sampleInto = [&](auto& egrid, auto toRgb) {
-            using GridT = std::decay_t<decltype(egrid)>;
-            parallelForChunks(size_t(m.nz), 1, [&](size_t z0, size_t z1) {
-                auto acc = egrid.getConstAccessor();
-                openvdb::tools::GridSampler<typename GridT::ConstAccessor, openvdb::tools::BoxSampler> s(
-                    acc, egrid.transform());
-                for (size_t z = z0; z < z1; ++z)
-                    for (int y = 0; y < m.ny; ++y)
-                        for (int x = 0; x < m.nx; ++x) {
-                            const size_t vi = m.index(x, y, int(z));
-                            if (vi == Medium::npos) continue;  // unallocated tile
-                            const openvdb::Vec3d w =
-                                xf.indexToWorld(openvdb::Vec3d(lo.x() + x, lo.y() + y, lo.z() + int(z)));
-                            RGB e = toRgb(s.wsSample(w)) * es;
-                            bool b = false;
-                            for (int c = 0; c < 3; ++c)
-                                if (!std::isfinite(e[c]) || e[c] < 0) { b = true; e[c] = 0; }
-                            if (b) ++badE;
-                            m.emission[vi] = e;
-                        }
-            });
-        };
-        if (auto f = openvdb::gridPtrCast<openvdb::FloatGrid>(out.emission))
-            sampleInto(*f, [](float v) { return RGB(v); });
-        else if (auto v = openvdb::gridPtrCast<openvdb::Vec3SGrid>(out.emission))
-            sampleInto(*v, [](const openvdb::Vec3s& c) { return RGB(c.x(), c.y(), c.z()); });
-        const std::string ew = "emission grid '" + o.emissionGrid + "'";
-        if (badE > 0 && !o.sanitize)
-            throw InputError(kComp, ew + " has NaN, infinite or negative radiance at " + std::to_string(badE.load()) +
-                                        " voxel(s) (emission scale " + std::to_string(o.emissionScale) +
-                                        "); pass --sanitize to clamp them to 0");
-        if (badE > 0)
-            out.warnings.push_back(ew + ": --sanitize clamped " + std::to_string(badE.load()) + " voxel(s) to 0");
-    }
+    if (out.emission)
+        sampleEmission(o, out, [&](int x, int y, int z, int, int, int) {
+            return xf.indexToWorld(openvdb::Vec3d(lo.x() + x, lo.y() + y, lo.z() + z));
+        }, 1);
     out.density = grid;
 }
 

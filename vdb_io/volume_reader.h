@@ -11,6 +11,14 @@
 //    directions form Medium::localToWorld;
 //  - emission: emitted radiance L_e (pbrt-v4 convention, source term sigma_a * L_e),
 //    value * emissionScale, sampled trilinearly at the dense voxel centres in world space.
+//  - solveScale S != 1 (--solve-scale): the block is a resampled grid with the input's
+//    axes and voxel size / S, covering the active bounding box (plus `pad` solve voxels),
+//    its low corner on the bounding box's low corner minus the pad. A solve voxel's
+//    sigma_t is the mean of the input over its volume (S < 1: every input voxel weighted
+//    by its overlap, i.e. the limit of point sub-samples with nearest-voxel lookups, so
+//    optical depth is preserved exactly) or the input voxel containing its centre (S > 1);
+//    emission is the mean of ceil(1/S)^3 trilinear sub-samples (S < 1) or the sample at
+//    the centre (S > 1). SolveGrid says where the block sits in the input's index space.
 #pragma once
 
 #include <cstdint>
@@ -34,13 +42,23 @@ struct VolumeReadOptions {
     double emissionScale = 1.0;
     int pad = 1;                     ///< empty voxels added around the active bounding box
     std::uint64_t maxDenseVoxels = 1ull << 30;  ///< refuse larger dense blocks (memory guard)
+    double solveScale = 1.0;         ///< solve voxels per input voxel along each axis (--solve-scale)
+};
+
+/// Where the dense solve block sits in the input grid's index space. With scale == 1 it is
+/// the input's own voxels (dense voxel d = index blockMin + d); otherwise solve voxel
+/// (a, b, c) covers index space [corner + (a, b, c) / scale, corner + (a+1, b+1, c+1) / scale).
+struct SolveGrid {
+    double scale = 1.0;
+    openvdb::Vec3d corner{0.0, 0.0, 0.0};  ///< index-space position of the block's low corner
 };
 
 struct VolumeInput {
     openvdb::FloatGrid::Ptr density;  ///< the grid the block was built from (fog volume)
     openvdb::GridBase::Ptr emission;  ///< the emission grid as read (float or Vec3f), or null
     Medium medium;                    ///< albedo/g left at defaults: the caller sets them
-    openvdb::Coord blockMin;          ///< index coordinate of dense voxel (0,0,0)
+    openvdb::Coord blockMin;          ///< index coordinate of dense voxel (0,0,0) (scale 1 only)
+    SolveGrid solveGrid;              ///< the block's placement in index space (any scale)
     bool empty = false;               ///< no active voxels: no medium to solve
     std::uint64_t activeVoxels = 0;
     std::uint64_t sanitized = 0;      ///< values clamped because of --sanitize
