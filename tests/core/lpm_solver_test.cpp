@@ -124,26 +124,6 @@ TEST(LpmSolver, SingleScatteringSlabNormalSun) {
     }
 }
 
-// Exact voxel-averaged transmittance toward the sun through a piecewise-constant box
-// (independent fine quadrature + analytic ray-box distance; homogeneous box only).
-static double boxTransmittanceAverage(const Medium& m, double sigma, int ix, int iy, int iz, const Vec3& toSun, int q) {
-    double acc = 0;
-    const double ext[3] = {m.nx * m.voxelSize.x, m.ny * m.voxelSize.y, m.nz * m.voxelSize.z};
-    for (int a = 0; a < q; ++a)
-        for (int b = 0; b < q; ++b)
-            for (int c = 0; c < q; ++c) {
-                const Vec3 p{(ix + (a + 0.5) / q) * m.voxelSize.x, (iy + (b + 0.5) / q) * m.voxelSize.y,
-                             (iz + (c + 0.5) / q) * m.voxelSize.z};
-                double t = 1e30;
-                for (int k = 0; k < 3; ++k) {
-                    if (toSun[k] > 0) t = std::min(t, (ext[k] - p[k]) / toSun[k]);
-                    if (toSun[k] < 0) t = std::min(t, -p[k] / toSun[k]);
-                }
-                acc += std::exp(-sigma * t);
-            }
-    return acc / (q * q * q);
-}
-
 // Relative RMS and max error of single scattering in an oblique-sun box, against the exact
 // voxel average, for ray-map resolution r.
 static void obliqueBoxError(int r, double& rms, double& worst) {

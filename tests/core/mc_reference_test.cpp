@@ -29,24 +29,10 @@ std::vector<size_t> someVoxels(const Medium& m, int count, std::uint64_t seed) {
     return v;
 }
 
-// Exact voxel average of exp(-sigma * distance to the box boundary along `toward`).
 double boxTransmittance(const Medium& m, double sigma, size_t vox, const Vec3& toward, int q) {
-    const int ix = int(vox % m.nx), iy = int((vox / m.nx) % m.ny), iz = int(vox / (size_t(m.nx) * m.ny));
-    const double ext[3] = {m.nx * m.voxelSize.x, m.ny * m.voxelSize.y, m.nz * m.voxelSize.z};
-    double acc = 0;
-    for (int a = 0; a < q; ++a)
-        for (int b = 0; b < q; ++b)
-            for (int c = 0; c < q; ++c) {
-                const Vec3 p{(ix + (a + 0.5) / q) * m.voxelSize.x, (iy + (b + 0.5) / q) * m.voxelSize.y,
-                             (iz + (c + 0.5) / q) * m.voxelSize.z};
-                double t = 1e30;
-                for (int k = 0; k < 3; ++k) {
-                    if (toward[k] > 0) t = std::min(t, (ext[k] - p[k]) / toward[k]);
-                    if (toward[k] < 0) t = std::min(t, -p[k] / toward[k]);
-                }
-                acc += std::exp(-sigma * t);
-            }
-    return acc / (q * q * q);
+    int ix, iy, iz;
+    m.coord(vox, ix, iy, iz);
+    return boxTransmittanceAverage(m, sigma, ix, iy, iz, toward, q);
 }
 }  // namespace
 

@@ -92,6 +92,26 @@ inline void scaleToMaxOpticalDepth(Medium& m, double tau) {
     for (float& s : m.sigmaT) s = float(s * k);
 }
 
+/// Exact voxel average of exp(-sigma * distance to the box boundary along `toward`) for a
+/// homogeneous box (independent of the solver: q^3 point quadrature, analytic distances).
+inline double boxTransmittanceAverage(const Medium& m, double sigma, int ix, int iy, int iz, const Vec3& toward, int q) {
+    double acc = 0;
+    const double ext[3] = {m.nx * m.voxelSize.x, m.ny * m.voxelSize.y, m.nz * m.voxelSize.z};
+    for (int a = 0; a < q; ++a)
+        for (int b = 0; b < q; ++b)
+            for (int c = 0; c < q; ++c) {
+                const Vec3 p{(ix + (a + 0.5) / q) * m.voxelSize.x, (iy + (b + 0.5) / q) * m.voxelSize.y,
+                             (iz + (c + 0.5) / q) * m.voxelSize.z};
+                double t = 1e30;
+                for (int k = 0; k < 3; ++k) {
+                    if (toward[k] > 0) t = std::min(t, (ext[k] - p[k]) / toward[k]);
+                    if (toward[k] < 0) t = std::min(t, -p[k] / toward[k]);
+                }
+                acc += std::exp(-sigma * t);
+            }
+    return acc / (q * q * q);
+}
+
 /// Uniform-sigma box of n^3 voxels.
 inline Medium makeBox(int nx, int ny, int nz, double sigma, double h = 1.0) {
     Medium m;
