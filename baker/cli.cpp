@@ -89,9 +89,18 @@ int defaultThreads() {
     return 0;
 }
 
-std::string oneLine(std::string s) {
-    for (char& c : s)
-        if (c == '\n' || c == '\r') c = ' ';
+// One readable line: control bytes become spaces, runs of spaces collapse, and very long
+// messages (a corrupt file can make a library quote kilobytes of garbage) are cut.
+std::string oneLine(const std::string& in) {
+    std::string s;
+    s.reserve(in.size());
+    for (unsigned char c : in) {
+        const char o = (c < 0x20 || c == 0x7f) ? ' ' : char(c);
+        if (o == ' ' && !s.empty() && s.back() == ' ') continue;
+        s += o;
+    }
+    constexpr size_t kMax = 400;
+    if (s.size() > kMax) s = s.substr(0, kMax) + "... (message cut)";
     return s;
 }
 

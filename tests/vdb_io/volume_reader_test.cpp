@@ -2,6 +2,7 @@
 #include "vdb_io/volume_reader.h"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
 #include <openvdb/tools/LevelSetSphere.h>
 
@@ -240,4 +241,20 @@ TEST(VolumeReader, UnreadableFiles) {
     std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     std::ofstream(dir + "/cut.vdb", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
     expectThrowWith<InputError>([&] { readVolume(opts(dir + "/cut.vdb", "voxel_fog_density")); }, {"cut.vdb"});
+}
+
+// Fuzzing finding (scripts/fuzz.sh): a 75 kB corrupt VDB whose grid-descriptor length field
+// made OpenVDB allocate and zero ~5.9 GB. It must fail cleanly, with bounded memory.
+TEST(VolumeReader, CorruptHeaderFailsWithoutHugeAllocation) {
+#if defined(__SANITIZE_ADDRESS__)
+    GTEST_SKIP() << "the address-space cap is off under AddressSanitizer";
+#endif
+    rusage before{};
+    ::getrusage(RUSAGE_SELF, &before);
+    lpmtest::expectThrowWith<InputError>(
+        [&] { readVolume(opts(std::string(LPM_SOURCE_DIR) + "/tests/fuzz/regressions/vdb_header_oom.vdb")); },
+        {"vdb_header_oom.vdb", "corrupt"});
+    rusage after{};
+    ::getrusage(RUSAGE_SELF, &after);
+    EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 1024L * 1024L);  // KiB: under 1 GiB of growth
 }
