@@ -60,7 +60,7 @@ std::string jsonEscape(const std::string& s) {
 void checkOptions(const BakeOptions& o) {
     if (o.input.empty()) throw UsageError("no input VDB given");
     if (o.output.empty()) throw UsageError("no output given (-o OUT.vdb)");
-    if (o.env.empty() && o.suns.empty() && o.emissionGrid.empty())
+    if (o.env.empty() && o.suns.empty() && o.emissionGrid.empty() && o.temperatureGrid.empty())
         throw UsageError("no light: give --env, --sun or --emission-grid");
     if (!(o.densityScale >= 0) || !std::isfinite(o.densityScale))
         throw UsageError("--density-scale must be finite and non-negative, got " + fmt(o.densityScale));
@@ -168,6 +168,11 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     vo.convertLevelSet = o.convertLevelSet;
     vo.emissionGrid = o.emissionGrid;
     vo.emissionScale = o.emissionScale;
+    vo.temperatureGrid = o.temperatureGrid;
+    vo.temperatureScale = o.temperatureScale;
+    vo.temperatureOffset = o.temperatureOffset;
+    vo.temperatureIntensity = o.temperatureIntensity;
+    vo.workingSpace = o.workingSpace;
     vo.maxDenseVoxels = o.maxVoxels;
     vo.solveScale = o.solveScale;
     VolumeInput vol = readVolume(vo);
@@ -309,6 +314,16 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     if (!o.suns.empty()) {
         str("suns", sunsDesc);
         lightsDesc += std::string(lightsDesc.empty() ? "" : "; ") + "suns: " + sunsDesc;
+    }
+    if (!o.temperatureGrid.empty()) {
+        str("temperature_grid", o.temperatureGrid);
+        dbl("temperature_scale", o.temperatureScale);
+        dbl("temperature_offset", o.temperatureOffset);
+        dbl("temperature_intensity", o.temperatureIntensity);
+        str("temperature_convention", "Kelvin = value * temperature_scale + temperature_offset; L_e = "
+                                      "temperature_intensity * black body (Planck x CIE 1931), 6500 K -> luminance 1, "
+                                      "in the working colour space; written as grid 'emission'");
+        lightsDesc += std::string(lightsDesc.empty() ? "" : "; ") + "temperature grid '" + o.temperatureGrid + "'";
     }
     if (!o.emissionGrid.empty()) {
         str("emission_grid", o.emissionGrid);

@@ -197,6 +197,14 @@ int runCli(int argc, char** argv) {
         ->default_val(0.0)->group(gIn);
     app.add_option("--emission-grid", b.emissionGrid, "float or Vec3f grid of emitted radiance L_e")->group(gIn);
     app.add_option("--emission-scale", b.emissionScale, "L_e = emission value * this")->default_val(1.0)->group(gIn);
+    app.add_option("--temperature-grid", b.temperatureGrid,
+                   "float grid of temperature: black-body emission (Kelvin = value * scale + offset)")->group(gIn);
+    app.add_option("--temperature-scale", b.temperatureScale, "Kelvin per grid unit (e.g. 1000 for caches in kK)")
+        ->default_val(1.0)->group(gIn);
+    app.add_option("--temperature-offset", b.temperatureOffset, "Kelvin added after scaling")
+        ->default_val(0.0)->group(gIn);
+    app.add_option("--temperature-intensity", b.temperatureIntensity,
+                   "L_e = this * black body(K), normalised so 6500 K has luminance 1")->default_val(1.0)->group(gIn);
     app.add_option("--max-voxels", b.maxVoxels, "refuse dense blocks larger than this (memory guard)")
         ->default_val(b.maxVoxels)->group(gIn);
 

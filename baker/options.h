@@ -47,6 +47,8 @@ struct BakeOptions {
     double g = 0.0;
     std::string emissionGrid;
     double emissionScale = 1.0;
+    std::string temperatureGrid;
+    double temperatureScale = 1.0, temperatureOffset = 0.0, temperatureIntensity = 1.0;
 
     std::string env, envColorSpace;
     std::string workingSpace = "ACEScg";

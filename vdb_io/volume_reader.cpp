@@ -21,7 +21,9 @@
 #include <openvdb/tree/LeafManager.h>
 #include <openvdb/util/logging.h>
 
+#include "core/blackbody.h"
 #include "core/parallel.h"
+#include "vdb_io/color.h"
 #include "vdb_io/io_error.h"
 
 namespace lpm {
@@ -313,6 +315,48 @@ std::string describeGrid(const openvdb::GridBase& g) {
     return s.str();
 }
 
+/// A Vec3f emission grid of black-body radiance from a temperature grid (Kelvin = value *
+/// scale + offset), in the working colour space: intensity * blackbody(K), where a 6500 K
+/// black body has luminance 1. Temperatures are tabulated every 10 K up to 40000 K.
+openvdb::Vec3SGrid::Ptr temperatureToEmission(const openvdb::FloatGrid& t, const VolumeReadOptions& o) {
+    constexpr int kSteps = 4001;
+    constexpr double kStep = 10.0;
+    std::vector<float> table(size_t(kSteps) * 3);
+    for (int i = 0; i < kSteps; ++i) {
+        const RGB c = blackbodyRec709(i * kStep);
+        for (int k = 0; k < 3; ++k) table[size_t(i) * 3 + k] = c[k] * float(o.temperatureIntensity);
+    }
+    convertColor(table, "lin_rec709", o.workingSpace);
+    auto e = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
+    e->setTransform(t.transform().copy());
+    e->setName(t.getName());
+    e->tree().topologyUnion(t.tree());
+    auto acc = e->getAccessor();
+    std::uint64_t bad = 0;
+    for (auto it = t.cbeginValueOn(); it; ++it) {
+        const double kelvin = double(*it) * o.temperatureScale + o.temperatureOffset;
+        if (!std::isfinite(kelvin)) {
+            ++bad;
+            continue;
+        }
+        const double x = std::clamp(kelvin / kStep, 0.0, double(kSteps - 1));
+        const int i0 = std::min(int(x), kSteps - 2);
+        const float f = float(x - i0);
+        openvdb::Vec3s v;
+        for (int k = 0; k < 3; ++k)
+            v[k] = std::max(0.f, table[size_t(i0) * 3 + k] * (1 - f) + table[size_t(i0 + 1) * 3 + k] * f);
+        if (it.isVoxelValue()) {
+            acc.setValue(it.getCoord(), v);
+        } else {
+            e->fill(it.getBoundingBox(), v, true);
+        }
+    }
+    if (bad > 0 && !o.sanitize)
+        throw InputError(kComp, "temperature grid '" + o.temperatureGrid + "' has " + std::to_string(bad) +
+                                    " NaN/infinite value(s); pass --sanitize to treat them as 0 K");
+    return e;
+}
+
 VolumeInput readVolume(const VolumeReadOptions& o) {
     VolumeInput out;
     openvdb::io::File file = openFile(o.path);
@@ -350,6 +394,16 @@ VolumeInput readVolume(const VolumeReadOptions& o) {
         if (!out.emission->isType<openvdb::FloatGrid>() && !out.emission->isType<openvdb::Vec3SGrid>())
             throw InputError(kComp, "emission grid '" + o.emissionGrid + "' in '" + o.path + "' holds " +
                                         out.emission->valueType() + " values; expected float or vec3s");
+    }
+    if (!o.temperatureGrid.empty()) {
+        if (out.emission)
+            throw InputError(kComp, "use either --emission-grid or --temperature-grid, not both");
+        auto tb = readNamed(file, o.path, o.temperatureGrid, -1, *metas, out.gridsInFile, out.warnings, "temperature");
+        auto t = openvdb::gridPtrCast<openvdb::FloatGrid>(tb);
+        if (!t)
+            throw InputError(kComp, "temperature grid '" + o.temperatureGrid + "' in '" + o.path + "' holds " +
+                                        tb->valueType() + " values; expected float (Kelvin)");
+        out.emission = temperatureToEmission(*t, o);
     }
     file.close();
     gridToMedium(*grid, o, out);  // sets out.density to the (possibly sanitised) copy

@@ -40,6 +40,11 @@ struct VolumeReadOptions {
     bool convertLevelSet = false;    ///< convert a level set with tools::sdfToFogVolume
     std::string emissionGrid;        ///< empty = none
     double emissionScale = 1.0;
+    std::string temperatureGrid;     ///< empty = none; black-body emission from Kelvin
+    double temperatureScale = 1.0;   ///< Kelvin = value * scale + offset
+    double temperatureOffset = 0.0;
+    double temperatureIntensity = 1.0;  ///< L_e = intensity * blackbody(K), 6500 K -> luminance 1
+    std::string workingSpace = "ACEScg";  ///< colour space of the black-body emission
     int pad = 1;                     ///< empty voxels added around the active bounding box
     std::uint64_t maxDenseVoxels = 1ull << 30;  ///< refuse larger dense blocks (memory guard)
     double solveScale = 1.0;         ///< solve voxels per input voxel along each axis (--solve-scale)

@@ -7,6 +7,7 @@
 #include <openvdb/tools/LevelSetSphere.h>
 
 #include "../vdb_io/test_helpers.h"
+#include "core/blackbody.h"
 #include "run_helpers.h"
 #include "vdb_io/bake_file.h"
 
@@ -307,4 +308,38 @@ TEST(Cli, EmissionGridIsALight) {
     EXPECT_GT(maxS, 0) << "scattered light from the emission";
     a[2] = "velocity";
     expectOneLineError(runLpmbake(a, dir), 2, "input", {"'velocity'"});
+}
+
+TEST(Cli, TemperatureGridEmitsBlackBody) {
+    // A cube at 1800 K (stored as 1.8 kK): black-body emission, red above green above blue,
+    // brighter than the same cube at 1500 K; both grids at once is refused.
+    const std::string dir = lpmtest::scratchDir();
+    auto dens = lpmtest::cubeGrid(6, 1.0f, 1.0, "density");
+    auto temp = lpmtest::cubeGrid(6, 1.8f, 1.0, "temperature");
+    lpmtest::writeVdb(dir + "/fire.vdb", {dens, temp});
+    std::vector<std::string> a = {dir + "/fire.vdb", "--temperature-grid", "temperature", "--temperature-scale", "1000",
+                                  "--temperature-intensity", "1e4", "--working-space", "lin_rec709", "-o",
+                                  dir + "/f.vdb"};
+    a.insert(a.end(), kCheap.begin(), kCheap.end());
+    auto r = runLpmbake(a, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    const BakeFile b = readBakeFile(dir + "/f.vdb");
+    ASSERT_TRUE(b.emission);
+    EXPECT_EQ(metaString(*b.meta, "lpm:temperature_grid"), "temperature");
+    const openvdb::Vec3s e = b.emission->tree().getValue(openvdb::Coord(3, 3, 3));
+    const RGB expect = blackbodyRec709(1800.0) * 1e4f;
+    EXPECT_NEAR(e[0], expect.r, 2e-3 * expect.r);
+    EXPECT_GT(e[0], e[1]);
+    EXPECT_GT(e[1], e[2]);
+    // Cooler is dimmer.
+    a[4] = "833.3333";  // 1.8 * 833.33 = 1500 K
+    a[a.size() - 1 - kCheap.size()] = dir + "/g.vdb";
+    r = runLpmbake(a, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    const BakeFile c = readBakeFile(dir + "/g.vdb");
+    EXPECT_LT(c.emission->tree().getValue(openvdb::Coord(3, 3, 3))[0], e[0]);
+    // Emission and temperature together: one clear error.
+    std::vector<std::string> both = a;
+    both.insert(both.begin() + 1, {"--emission-grid", "temperature"});
+    expectOneLineError(runLpmbake(both, dir), 2, "input", {"--temperature-grid"});
 }
