@@ -58,10 +58,18 @@ std::uint64_t scanBadValues(openvdb::FloatGrid& grid, bool fix, float& example) 
 // std::bad_alloc instead of making OpenVDB allocate (and zero) gigabytes (a fuzzing
 // finding: a 75 kB file drove the reader to 5.9 GB). Not under AddressSanitizer, whose
 // shadow memory needs the address space.
+#if defined(__SANITIZE_ADDRESS__)
+#define LPM_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define LPM_ASAN 1
+#endif
+#endif
+
 class AddressSpaceCap {
 public:
     explicit AddressSpaceCap(std::uint64_t fileBytes) {
-#if !defined(__SANITIZE_ADDRESS__)
+#if !defined(LPM_ASAN)
         std::ifstream statm("/proc/self/statm");
         std::uint64_t pages = 0;
         if (!(statm >> pages) || ::getrlimit(RLIMIT_AS, &old_) != 0) return;
