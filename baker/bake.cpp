@@ -372,6 +372,9 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     db.blockMin = vol.blockMin;
     db.scale = vol.solveGrid.scale;
     db.corner = vol.solveGrid.corner;
+    db.affine = vol.solveGrid.affine;
+    std::copy(&vol.solveGrid.M[0][0], &vol.solveGrid.M[0][0] + 9, &db.M[0][0]);
+    std::copy(vol.solveGrid.t, vol.solveGrid.t + 3, db.t);
     db.nx = m.nx;
     db.ny = m.ny;
     db.nz = m.nz;

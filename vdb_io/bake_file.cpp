@@ -33,7 +33,9 @@ Stencil stencilAt(const DenseBake& b, const openvdb::Coord& c) {
     int i0[3], i1[3];
     float t[3];
     for (int a = 0; a < 3; ++a) {
-        const double u = std::clamp((c[a] - b.corner[a]) * b.scale - 0.5, 0.0, double(n[a] - 1));
+        const double raw = b.affine ? b.M[a][0] * c[0] + b.M[a][1] * c[1] + b.M[a][2] * c[2] + b.t[a]
+                                    : (c[a] - b.corner[a]) * b.scale;
+        const double u = std::clamp(raw - 0.5, 0.0, double(n[a] - 1));
         i0[a] = std::min(int(std::floor(u)), std::max(0, n[a] - 2));
         i1[a] = std::min(i0[a] + 1, n[a] - 1);
         t[a] = float(u - i0[a]);
@@ -53,7 +55,7 @@ template <typename F>
 openvdb::Vec3SGrid::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake& b, F value) {
     openvdb::Vec3SGrid::Ptr g = topo.deepCopy();
     openvdb::tree::LeafManager<openvdb::Vec3STree> leaves(g->tree());
-    if (b.scale != 1.0) {
+    if (b.scale != 1.0 || b.affine) {
         leaves.foreach([&](openvdb::Vec3STree::LeafNodeType& leaf, size_t) {
             for (auto it = leaf.beginValueOn(); it; ++it) {
                 const Stencil s = stencilAt(b, it.getCoord());

@@ -30,6 +30,9 @@ struct DenseBake {
     openvdb::Coord blockMin;   ///< index coordinate of dense voxel (0,0,0) (scale 1)
     double scale = 1.0;        ///< dense voxels per input voxel along each axis
     openvdb::Vec3d corner{0.0, 0.0, 0.0};  ///< index-space low corner of the block (scale != 1)
+    bool affine = false;                   ///< block coordinate of input index c = M c + t
+    double M[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    double t[3] = {0, 0, 0};
     int nx = 0, ny = 0, nz = 0;
     int coeffs = 1;            ///< SH coefficients per voxel
     const float* sh = nullptr; ///< [voxel][coeff][rgb], x fastest; null for an empty bake

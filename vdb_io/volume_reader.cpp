@@ -209,6 +209,99 @@ struct Tap {
 /// --solve-scale S != 1: builds out.medium on a grid with the input's axes and voxel size
 /// / S (out.medium's voxelSize and localToWorld hold the input's on entry). See
 /// volume_reader.h for the placement and the resampling rules.
+/// Sheared (non-orthogonal) index axes: the solver needs an orthonormal voxel frame, so
+/// the density is resampled onto cubic voxels in the frame Gram-Schmidt builds from the
+/// index axes (first axis kept), voxel size = cube root of the input voxel volume divided
+/// by --solve-scale. Each solve voxel averages 3^3 point samples of the input (nearest
+/// input voxel); the bake maps back through the affine map recorded in out.solveGrid.
+void resampleSheared(const openvdb::FloatGrid& grid, const openvdb::CoordBBox& bbox, int pad,
+                     const VolumeReadOptions& o, const std::string& where, VolumeInput& out) {
+    Medium& m = out.medium;
+    const openvdb::math::Transform& xf = grid.transform();
+    const openvdb::Vec3d w0 = xf.indexToWorld(openvdb::Vec3d(0, 0, 0));
+    openvdb::Vec3d a[3], e[3];
+    for (int i = 0; i < 3; ++i) {
+        openvdb::Vec3d u(0, 0, 0);
+        u[i] = 1;
+        a[i] = xf.indexToWorld(u) - w0;
+    }
+    e[0] = a[0] / a[0].length();
+    e[1] = a[1] - e[0] * e[0].dot(a[1]);
+    e[1] /= e[1].length();
+    e[2] = a[2] - e[0] * e[0].dot(a[2]) - e[1] * e[1].dot(a[2]);
+    const double e2len = e[2].length();
+    if (!(e[1].length() > 0) || !(e2len > 1e-12 * a[2].length()))
+        throw InputError(kComp, where + " has a degenerate (flat) transform");
+    e[2] /= e2len;
+    const double det = std::fabs(a[0].dot(a[1].cross(a[2])));
+    const double h = std::cbrt(det) / o.solveScale;
+    // Extent of the active box (voxel extents included) in the new frame.
+    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+    for (int k = 0; k < 8; ++k) {
+        const openvdb::Vec3d c((k & 1) ? bbox.max().x() + 0.5 : bbox.min().x() - 0.5,
+                               (k & 2) ? bbox.max().y() + 0.5 : bbox.min().y() - 0.5,
+                               (k & 4) ? bbox.max().z() + 0.5 : bbox.min().z() - 0.5);
+        const openvdb::Vec3d p = xf.indexToWorld(c);
+        for (int i = 0; i < 3; ++i) {
+            lo[i] = std::min(lo[i], e[i].dot(p));
+            hi[i] = std::max(hi[i], e[i].dot(p));
+        }
+    }
+    double dims[3];
+    for (int i = 0; i < 3; ++i) {
+        lo[i] -= pad * h;
+        dims[i] = std::max(1.0, std::ceil((hi[i] + pad * h - lo[i]) / h - 1e-6));
+    }
+    const double count = dims[0] * dims[1] * dims[2];
+    if (count > double(o.maxDenseVoxels))
+        throw InputError(kComp, where + ": its sheared transform is resampled to " + std::to_string(int(dims[0])) + "x" +
+                                        std::to_string(int(dims[1])) + "x" + std::to_string(int(dims[2])) +
+                                        " voxels, above the limit of " + std::to_string(o.maxDenseVoxels) +
+                                        " (--max-voxels); use a smaller --solve-scale");
+    m.allocate(int(dims[0]), int(dims[1]), int(dims[2]));
+    m.voxelSize = {h, h, h};
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) m.localToWorld.m[r * 3 + c] = e[c][r];
+    const openvdb::Vec3d origin = e[0] * lo[0] + e[1] * lo[1] + e[2] * lo[2];
+    m.origin = {origin.x(), origin.y(), origin.z()};
+    auto worldAt = [&](int x, int y, int z, double fx, double fy, double fz) {
+        return origin + e[0] * ((x + fx) * h) + e[1] * ((y + fy) * h) + e[2] * ((z + fz) * h);
+    };
+    const float scale = float(o.densityScale);
+    constexpr int q = 3;
+    parallelForChunks(size_t(m.nz), 1, [&](size_t z0, size_t z1) {
+        auto acc = grid.getConstAccessor();
+        for (int z = int(z0); z < int(z1); ++z)
+            for (int y = 0; y < m.ny; ++y)
+                for (int x = 0; x < m.nx; ++x) {
+                    double sum = 0;
+                    for (int k = 0; k < q * q * q; ++k) {
+                        const openvdb::Vec3d wp =
+                            worldAt(x, y, z, (k % q + 0.5) / q, ((k / q) % q + 0.5) / q, (k / (q * q) + 0.5) / q);
+                        const openvdb::Vec3d ip = xf.worldToIndex(wp);
+                        const openvdb::Coord c(int(std::floor(ip.x() + 0.5)), int(std::floor(ip.y() + 0.5)),
+                                               int(std::floor(ip.z() + 0.5)));
+                        if (acc.isValueOn(c)) sum += acc.getValue(c);
+                    }
+                    m.sigmaT[m.index(x, y, z)] = float(sum / (q * q * q)) * scale;
+                }
+    });
+    // Block coordinate of input index c: E^T (A c + w0 - origin) / h.
+    out.solveGrid.affine = true;
+    out.solveGrid.scale = 1.0 / h;
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) out.solveGrid.M[r][c] = e[r].dot(a[c]) / h;
+        out.solveGrid.t[r] = e[r].dot(w0 - origin) / h;
+    }
+    if (out.emission)
+        sampleEmission(o, out, [&](int x, int y, int z, int jx, int jy, int jz) {
+            return worldAt(x, y, z, 0.5 + jx, 0.5 + jy, 0.5 + jz);
+        }, 1);
+    out.warnings.push_back(where + " has a sheared transform: resampled to " + std::to_string(m.nx) + "x" +
+                           std::to_string(m.ny) + "x" + std::to_string(m.nz) + " cubic voxels of " +
+                           std::to_string(h) + " in an orthonormal frame");
+}
+
 void resampleToSolveGrid(const openvdb::FloatGrid& grid, const openvdb::CoordBBox& bbox, int pad,
                          const VolumeReadOptions& o, const std::string& where, VolumeInput& out) {
     const double S = o.solveScale;
@@ -462,11 +555,9 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
                                             std::to_string(m.voxelSize[a]) + " along index axis " + std::to_string(a) + ")");
         axis[a] /= m.voxelSize[a];
     }
+    bool sheared = false;
     for (int a = 0; a < 3; ++a)
-        for (int b = a + 1; b < 3; ++b)
-            if (std::fabs(axis[a].dot(axis[b])) > 1e-5)
-                throw InputError(kComp, where + " has a sheared transform (index axes " + std::to_string(a) + " and " +
-                                                std::to_string(b) + " are not perpendicular); resample it first");
+        for (int b = a + 1; b < 3; ++b) sheared |= std::fabs(axis[a].dot(axis[b])) > 1e-5;
     for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) m.localToWorld.m[r * 3 + c] = axis[c][r];  // column c = world axis c
 
@@ -481,6 +572,11 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
     const double S = o.solveScale;
     if (!(S > 0) || !std::isfinite(S))
         throw InputError(kComp, "solve scale must be positive and finite, got " + std::to_string(S));
+    if (sheared) {
+        resampleSheared(*grid, bbox, pad, o, where, out);
+        out.density = grid;
+        return;
+    }
     if (S != 1.0) {
         resampleToSolveGrid(*grid, bbox, pad, o, where, out);
         out.density = grid;

@@ -56,6 +56,11 @@ struct VolumeReadOptions {
 struct SolveGrid {
     double scale = 1.0;
     openvdb::Vec3d corner{0.0, 0.0, 0.0};  ///< index-space position of the block's low corner
+    /// Sheared input transforms: the block is an orthonormal grid, and the continuous block
+    /// coordinate of input index c is M c + t (voxel centres at integer + 0.5).
+    bool affine = false;
+    double M[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    double t[3] = {0, 0, 0};
 };
 
 struct VolumeInput {

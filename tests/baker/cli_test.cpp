@@ -343,3 +343,38 @@ TEST(Cli, TemperatureGridEmitsBlackBody) {
     both.insert(both.begin() + 1, {"--emission-grid", "temperature"});
     expectOneLineError(runLpmbake(both, dir), 2, "input", {"--temperature-grid"});
 }
+
+TEST(Cli, ShearedTransformIsResampledAndMappedBack) {
+    // Index axes (1,0,0), (0.5,1,0), (0,0,1): a slanted box. A vertical sun into an
+    // absorbing medium gives S = E/(4 pi) exp(-sigma d), d = distance up to the horizontal
+    // top face, so each index layer j has a known value at voxels whose vertical column
+    // leaves through the top (index i >= 8: the slanted side is out of the way).
+    const std::string dir = lpmtest::scratchDir();
+    initOpenVdb();
+    auto g = openvdb::FloatGrid::create(0.f);
+    g->setName("density");
+    openvdb::math::Mat4d mat = openvdb::math::Mat4d::identity();
+    mat(1, 0) = 0.5;  // row-vector convention: index y adds 0.5 to world x
+    g->setTransform(openvdb::math::Transform::createLinearTransform(mat));
+    g->fill(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(15)), 0.3f, true);
+    g->tree().voxelizeActiveTiles();
+    ASSERT_NEAR(g->transform().indexToWorld(openvdb::Vec3d(0, 1, 0)).x(), 0.5, 1e-12);
+    lpmtest::writeVdb(dir + "/shear.vdb", {g});
+    const auto r = runLpmbake({dir + "/shear.vdb", "--sun", "0,1,0", "--sun-irradiance", "1", "--sun-angle", "0",
+                               "--albedo", "0", "--directions-per-face", "2", "-o", dir + "/s.vdb"},
+                              dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find("sheared transform: resampled"), std::string::npos) << r.err;
+    const BakeFile b = readBakeFile(dir + "/s.vdb");
+    ASSERT_TRUE(b.sh[0]);
+    EXPECT_EQ(b.sh[0]->activeVoxelCount(), g->activeVoxelCount());
+    double worst = 0;
+    for (int j = 0; j < 15; ++j)
+        for (int i = 9; i <= 13; ++i)
+            for (int k = 5; k <= 10; ++k) {
+                const double got = b.sh[0]->tree().getValue(openvdb::Coord(i, j, k))[0] * 0.28209479177387814 * 4 * M_PI;
+                const double expect = std::exp(-0.3 * (15.5 - j)) * std::sinh(0.15) / 0.15;  // layer average
+                worst = std::max(worst, std::fabs(got / expect - 1));
+            }
+    EXPECT_LT(worst, 0.02);
+}
