@@ -251,11 +251,11 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
         const int k = s.subdivide;
         LpmSettings fs = s;
         fs.subdivide = 1;
-        LpmResult fr = solveLpm(subdivided(m, k), lights, fs);  // (rebuilt below for lookups)
+        const Medium fm = subdivided(m, k);
+        LpmResult fr = solveLpm(fm, lights, fs);
         LpmResult res = fr;
         const size_t N = m.voxelCount(), nc = size_t(fr.coeffs);
         res.sh.assign(N * nc * 3, 0.0f);
-        const Medium fm = subdivided(m, k);  // same layout as the solve (index lookups only)
         parallelForChunks(size_t(m.nz), 1, [&](size_t zb, size_t ze) {
             std::vector<double> acc(nc * 3);
             for (int z = int(zb); z < int(ze); ++z)
