@@ -6,4 +6,5 @@ bash scripts/install_deps.sh
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLPM_SANITIZE=ON -DLPM_BUILD_BENCH=OFF >/dev/null
 cmake --build build-asan -j"${JOBS:-2}"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+export LSAN_OPTIONS=suppressions=$PWD/scripts/lsan.supp
 ctest --test-dir build-asan --output-on-failure -j"${JOBS:-2}" --timeout 1500
