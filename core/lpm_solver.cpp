@@ -17,6 +17,7 @@
 
 #include "core/parallel.h"
 #include "core/quadrature.h"
+#include "core/segment.h"
 
 namespace lpm {
 
@@ -49,6 +50,7 @@ struct Job {
     double weight = 1;    // solid angle of the direction bin (1 for suns)
     const float* src = nullptr;  // per-voxel RGB radiance feeding the source, or null
     size_t srcStride = 3;        // floats between consecutive voxels in src
+    bool srcLinear = false;      // src also holds the x, y, z slopes (3 RGB triples after the mean)
     RGB srcScale;         // Q_c = sigma_t * srcScale_c * src_c
     double offsetU = 0.5, offsetV = 0.5;  // ray-lattice offset within a lattice cell, [0, 1)
     std::vector<double> shCoef;   // per SH coefficient: multiplies Phi (includes 1/V)
@@ -62,12 +64,52 @@ int dominantAxis(const Vec3& w) {
     return a;
 }
 
+// How the r x r ray lattice of one direction samples the lateral coordinate of the voxels
+// of slice t. At depth s in [0, 1] of the slice the rays in any voxel sit at
+// xi = delta(s) + (j - (r-1)/2) / r, j = 0..r-1, delta(s) = (frac(o + r d (t + s)) - 1/2) / r
+// (o the lattice offset, d the lateral shift per slice in voxels), the same for every
+// voxel of the slice. Their centroid over the slice is Int delta ds, their spread about it
+// (r^2 - 1) / (12 r^2) + Int delta^2 ds - centroid^2; the uniform values are 0 and 1/12.
+struct LatticeMoments {
+    double centroid = 0, scale = 1;  // scale = (1/12) / spread
+    LatticeMoments() = default;
+    LatticeMoments(double o, double d, int r, int t) {
+        // Antiderivatives of frac(x) - 1/2 and (frac(x) - 1/2)^2.
+        auto G1 = [](double x) { const double f = x - std::floor(x); return 0.5 * f * f - 0.5 * f; };
+        auto G2 = [](double x) {
+            const double fl = std::floor(x), f = x - fl, h = f - 0.5;
+            return fl / 12 + (h * h * h + 0.125) / 3;
+        };
+        const double x0 = o + r * d * t, D = r * d;
+        double m1, m2;
+        if (std::fabs(D) < 1e-7) {
+            const double g = (x0 + 0.5 * D) - std::floor(x0 + 0.5 * D) - 0.5;
+            m1 = g;
+            m2 = g * g;
+        } else {
+            // G1 is periodic (frac - 1/2 integrates to zero over a period).
+            m1 = (G1(x0 + D) - G1(x0)) / D;
+            m2 = (G2(x0 + D) - G2(x0)) / D;
+        }
+        centroid = m1 / r;
+        const double spread = (double(r) * r - 1) / (12.0 * r * r) + std::max(0.0, m2 - m1 * m1) / (double(r) * r);
+        scale = spread > 0 ? (1.0 / 12) / spread : 1.0;
+    }
+};
+
 // Sweeps one direction through the grid slice by slice (Fattal 2009 sec. 4): rays start
 // on the entry face on an r x r lattice per voxel, keep sub-voxel positions, and re-enter
 // at the opposite lateral face (carrying the boundary radiance again) when they leave
 // through a lateral face. The lattice tiles every slice exactly, so the rays' summed
 // A_perp * length in each voxel equals its volume.
+//
+// Linear = true: the linear-characteristic scheme (docs/lpm_solver.md): the source is
+// linear inside each voxel, Q(x) = sigma c (U0 + sum_k U_k xi_k) with xi_k the position in
+// the voxel in [-1/2, 1/2], and every segment also deposits the first moments
+// Int L xi_k ds; phi then holds [voxel][mean, x, y, z][rgb].
+template <bool Linear>
 void sweep(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
+    constexpr int M = Linear ? 4 : 1;
     const int a = job.axis, u = (a + 1) % 3, v = (a + 2) % 3;
     const int N[3] = {m.nx, m.ny, m.nz};
     const size_t stride[3] = {1, size_t(m.nx), size_t(m.nx) * m.ny};
@@ -108,6 +150,16 @@ void sweep(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
     for (int t = 0; t < na; ++t) {
         const int ia = job.sign > 0 ? t : na - 1 - t;
         const size_t base = size_t(ia) * stride[a];
+        // Linear source: the ray lattice samples a voxel's lateral coordinates with a centroid
+        // and spread that differ from the uniform ones (1/r-sized offsets). Positions are
+        // taken relative to the sampled centroid and moments scaled by the sampled spread,
+        // so the rays integrate every linear function exactly: sources inject exactly U0 V
+        // and a uniform field deposits zero slope (docs/lpm_solver.md).
+        LatticeMoments lu, lv;
+        if constexpr (Linear) {
+            lu = LatticeMoments(job.offsetU, du, r, t);
+            lv = LatticeMoments(job.offsetV, dv, r, t);
+        }
         for (size_t k = 0; k < nRays; ++k) {
             double* Lk = &L[k * 3];
             double p = pu[k], q = pv[k];
@@ -134,9 +186,48 @@ void sweep(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
                 if (len > 0 && vox != Medium::npos) {  // unallocated tiles are empty: nothing to do
                     const double s = sigma[vox];
                     const double tau = s * len;
-                    float* ph = phi + vox * 3;
+                    float* ph = phi + vox * 3 * M;
                     ++segs;
-                    if (tau == 0) {
+                    if constexpr (Linear) {
+                        // Position in the voxel at the segment start, and its change along it.
+                        double xi0[3], dxi[3];
+                        xi0[a] = job.sign > 0 ? lam - 0.5 : 0.5 - lam;
+                        dxi[a] = job.sign > 0 ? lamN - lam : lam - lamN;
+                        double xu = p + lam * du - (cu + 0.5), xv = q + lam * dv - (cv + 0.5);
+                        xu -= nu * std::round(xu / nu);  // the ray may have wrapped at a lateral face
+                        xv -= nv * std::round(xv / nv);
+                        xi0[u] = xu - lu.centroid;
+                        xi0[v] = xv - lv.centroid;
+                        dxi[u] = (lamN - lam) * du;
+                        dxi[v] = (lamN - lam) * dv;
+                        const SegmentFactors f(tau, len);
+                        double momentScale[3];
+                        momentScale[a] = 1;
+                        momentScale[u] = lu.scale;
+                        momentScale[v] = lv.scale;
+                        for (int c = 0; c < 3; ++c) {
+                            // Q(t) = qa + qb t / len along the segment.
+                            double qa = 0, qb = 0;
+                            if (src) {
+                                const float* sp = src + vox * srcStride + c;
+                                const double k0 = s * scale[c];
+                                qa = k0 * sp[0];
+                                if (job.srcLinear)
+                                    for (int ax = 0; ax < 3; ++ax) {
+                                        qa += k0 * sp[3 * (ax + 1)] * xi0[ax];
+                                        qb += k0 * sp[3 * (ax + 1)] * dxi[ax];
+                                    }
+                            }
+                            double M0, M1;
+                            Lk[c] = f.propagate(Lk[c], qa, qb, M0, M1);
+                            ph[c] += float(aPerp * M0);
+                            for (int ax = 0; ax < 3; ++ax)
+                                ph[3 * (ax + 1) + c] += float(aPerp * momentScale[ax] * (xi0[ax] * M0 + dxi[ax] * M1));
+                            sca[c] += s * alb[c] * M0;
+                            abs_[c] += s * (1 - alb[c]) * M0;
+                            inj[c] += len * (qa + 0.5 * qb);
+                        }
+                    } else if (tau == 0) {
                         for (int c = 0; c < 3; ++c) ph[c] += float(aPerp * Lk[c] * len);
                     } else {
                         const double em = std::expm1(-tau);  // T - 1
@@ -321,21 +412,34 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
     if (binsPerFace > 0 && s.directionsPerFace % binsPerFace != 0)
         throw Error("LPM", "bins per face (" + std::to_string(binsPerFace) + ") must divide directions per face (" +
                                std::to_string(s.directionsPerFace) + ")");
+    // Source shape inside a voxel. A voxel-constant (step) source leaks light across
+    // optically thick voxels (it is carried to the exit face undamped); a linear source with
+    // deposited first moments follows the decay inside the voxel (docs/lpm_solver.md).
+    double maxTau = 0;
     {
-        // Voxel-constant sources leak light across optically thick voxels (the step
-        // scheme's numerical diffusion): say so, and what fixes it.
-        double maxTau = 0;
         const double hmax = std::max(m.voxelSize.x, std::max(m.voxelSize.y, m.voxelSize.z));
         for (float sg : m.sigmaT) maxTau = std::max(maxTau, double(sg) * hmax);
-        if (maxTau > 2.0) {
-            char buf[240];
+    }
+    if (s.linearSource < -1 || s.linearSource > 1)
+        throw Error("LPM", "linear source must be -1 (auto), 0 or 1, got " + std::to_string(s.linearSource));
+    const bool linear = s.linearSource == 1 || (s.linearSource < 0 && maxTau > s.linearSourceAbove);
+    {
+        char buf[240];
+        if (s.linearSource < 0)
+            std::snprintf(buf, sizeof buf, "%s source inside voxels: largest voxel optical depth %.3g %s %.3g",
+                          linear ? "linear" : "voxel-constant", maxTau, linear ? ">" : "<=", s.linearSourceAbove);
+        else
+            std::snprintf(buf, sizeof buf, "%s source inside voxels (requested)", linear ? "linear" : "voxel-constant");
+        res.decisions.push_back(buf);
+        if (maxTau > (linear ? 8.0 : 2.0)) {
             std::snprintf(buf, sizeof buf,
-                          "warning: voxels up to optical depth %.3g across; above ~2 light leaks through them "
-                          "(measured in docs/accuracy.md): subdivide by %d to bring it near 2",
-                          maxTau, int(std::ceil(maxTau / 2.0)));
+                          "warning: voxels up to optical depth %.3g across; above ~%g light leaks through them "
+                          "(measured in docs/accuracy.md): subdivide by %d to bring it near %g",
+                          maxTau, linear ? 8.0 : 2.0, int(std::ceil(maxTau / (linear ? 8.0 : 2.0))), linear ? 8.0 : 2.0);
             res.decisions.push_back(buf);
         }
     }
+    const int M = linear ? 4 : 1;  // per bin: mean, or mean and x, y, z slopes
     const CubeQuadrature quad(s.directionsPerFace);
     std::unique_ptr<CubeQuadrature> binQuad;
     if (binsPerFace > 0) binQuad.reset(new CubeQuadrature(binsPerFace));
@@ -408,11 +512,13 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
     };
 
     res.sh.assign(N * nc * 3, 0.0f);
-    // Unshot radiance per bin, layout [voxel][bin][rgb].
-    std::vector<float> unshot(size_t(nb) * N * 3, 0.0f), next(size_t(nb) * N * 3, 0.0f);
+    // Unshot radiance per bin, layout [voxel][bin][moment][rgb] (moments: the mean, and with
+    // a linear source the x, y, z slopes U_k of U0 + sum_k U_k xi_k).
+    const size_t perVoxel = size_t(nb) * M * 3;
+    std::vector<float> unshot(perVoxel * N, 0.0f), next(perVoxel * N, 0.0f);
     const int r = s.raysPerVoxel;
     const size_t batchMem = size_t(512) << 20;
-    const size_t maxBatch = std::max<size_t>(1, batchMem / std::max<size_t>(1, N * 3 * sizeof(float)));
+    const size_t maxBatch = std::max<size_t>(1, batchMem / std::max<size_t>(1, N * 3 * M * sizeof(float)));
 
     // Runs jobs in batches: sweeps in parallel (one buffer per job), then folds the batch
     // in job order, in parallel over voxels. Thread-count independent by construction.
@@ -424,8 +530,11 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
             std::vector<Tally> tallies(nbatch);
             parallelForChunks(nbatch, 1, [&](size_t jb, size_t je) {
                 for (size_t j = jb; j < je; ++j) {
-                    phi[j].assign(N * 3, 0.0f);
-                    sweep(m, jobs[b0 + j], r, phi[j].data(), tallies[j]);
+                    phi[j].assign(N * 3 * M, 0.0f);
+                    if (M == 4)
+                        sweep<true>(m, jobs[b0 + j], r, phi[j].data(), tallies[j]);
+                    else
+                        sweep<false>(m, jobs[b0 + j], r, phi[j].data(), tallies[j]);
                 }
             });
             for (size_t j = 0; j < nbatch; ++j) total.add(tallies[j]);
@@ -434,7 +543,7 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
                     const Job& job = jobs[b0 + j];
                     const float* ph = phi[j].data();
                     for (size_t x = vb; x < ve; ++x) {
-                        const float p[3] = {ph[x * 3], ph[x * 3 + 1], ph[x * 3 + 2]};
+                        const float* p = &ph[x * 3 * M];  // [moment][rgb]; moment 0 is the mean
                         if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
                         if (depositSh) {
                             float* o = &res.sh[x * nc * 3];
@@ -444,10 +553,13 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
                                 for (int c = 0; c < 3; ++c) o[k * 3 + c] += float(a * p[c]);
                             }
                         }
-                        float* un = &out[x * nb * 3];  // [voxel][bin][rgb]: contiguous per voxel
+                        float* un = &out[x * perVoxel];  // [voxel][bin][moment][rgb]: contiguous per voxel
                         for (int d = 0; d < nb; ++d) {
                             const float bc = float(job.binCoef[d]);
-                            for (int c = 0; c < 3; ++c) un[d * 3 + c] += bc * p[c];
+                            for (int c = 0; c < 3; ++c) un[d * M * 3 + c] += bc * p[c];
+                            // Least-squares slope from the first moment: Int xi_k^2 = 1/12.
+                            for (int k = 1; k < M; ++k)
+                                for (int c = 0; c < 3; ++c) un[(d * M + k) * 3 + c] += 12.0f * bc * p[k * 3 + c];
                         }
                     }
                 }
@@ -526,8 +638,9 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
         jobs.reserve(nd);
         for (int i = 0; i < nd; ++i) {
             Job j = makeJob(i);
-            j.src = &src[size_t(ff.binOfDirection(i)) * 3];
-            j.srcStride = size_t(nb) * 3;
+            j.src = &src[size_t(ff.binOfDirection(i)) * M * 3];
+            j.srcStride = perVoxel;
+            j.srcLinear = M == 4;
             j.srcScale = m.albedo;
             jobs.push_back(std::move(j));
         }
@@ -583,7 +696,9 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
         // chunked in a fixed order, so the result stays thread-count independent.
         const size_t len = next.size();
         std::vector<double> binW(len);
-        for (size_t i = 0; i < len; ++i) binW[i] = ff.binWeight(int((i / 3) % nb));
+        // Slopes enter with the weight of their L2 norm over the voxel (Int xi^2 = 1/12).
+        for (size_t i = 0; i < len; ++i)
+            binW[i] = ff.binWeight(int((i / (3 * M)) % nb)) * ((i / 3) % M == 0 ? 1.0 : 1.0 / 12);
         auto dotW = [&](const std::vector<float>& a, const std::vector<float>& b) {
             const size_t chunk = 1 << 16;
             std::vector<double> part((len + chunk - 1) / chunk, 0.0);
@@ -677,7 +792,8 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
             rNorm = std::sqrt(dotW(r, r));
         }
         // Negative round-off in X would act as a negative source: clamp it.
-        for (float& x : X) x = std::max(0.0f, x);
+        for (size_t i = 0; i < len; i += 3 * M)
+            for (int c = 0; c < 3; ++c) X[i + c] = std::max(0.0f, X[i + c]);
         // Final physical pass: deposit S from the whole remaining sum.
         const auto tp = Clock::now();
         std::fill(next.begin(), next.end(), 0.0f);
@@ -690,7 +806,7 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
         for (int d = 0; d < nb; ++d)
             for (size_t x = 0; x < N; ++x)
                 for (int c = 0; c < 3; ++c) {
-                    const size_t i = (x * nb + d) * 3 + c;
+                    const size_t i = (x * nb + d) * M * 3 + c;
                     miss += std::fabs(double(B[i]) + next[i] - X[i]) * m.sigmaT[x] * m.albedo[c] * ff.binWeight(d) * V;
                 }
         res.passes.back().scattered = miss / 3.0;
@@ -699,6 +815,25 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
                       bNorm > 0 ? rNorm / bNorm : 0.0);
         res.decisions.push_back(buf);
         res.converged = rNorm <= target;
+    }
+    if (linear) {
+        // A linear source can dip below zero in a voxel's corners (no slope limiter: one
+        // would break the scheme's linearity, and with it GMRES and the exact white
+        // furnace). Voxel averages stay non-negative in every measured case; any that does
+        // not is clamped to zero and reported.
+        size_t clamped = 0;
+        for (size_t x = 0; x < N; ++x)
+            for (int c = 0; c < 3; ++c)
+                if (res.sh[x * nc * 3 + c] < 0) {
+                    res.sh[x * nc * 3 + c] = 0;
+                    ++clamped;
+                }
+        if (clamped) {
+            char buf[200];
+            std::snprintf(buf, sizeof buf,
+                          "warning: %zu negative band-0 values from the linear source clamped to zero", clamped);
+            res.decisions.push_back(buf);
+        }
     }
     res.unshot = res.passes.back().scattered;
     res.residual = res.injected > 0 ? res.unshot / res.injected : 0.0;

@@ -25,6 +25,10 @@ struct LpmSettings {
     bool krylov = true;         ///< allow GMRES acceleration when source iteration would be slow
     int krylovAfter = 25;       ///< switch when plain iteration would need more than this many passes
     int krylovRestart = 40;     ///< GMRES restart length (capped by a 2 GiB budget for Krylov vectors)
+    int linearSource = -1;      ///< -1 auto (on when a voxel is optically thicker than
+                                ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
+                                ///< inside each voxel (linear characteristics; 4x the unshot memory)
+    double linearSourceAbove = 2.0;  ///< auto threshold: largest per-voxel optical depth
     int subdivide = 1;          ///< solve on voxels split k x k x k (same medium), average back: for
                                 ///< optically thick voxels, where a voxel-constant source leaks light
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass

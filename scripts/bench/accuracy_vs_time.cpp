@@ -1,7 +1,7 @@
 // Accuracy-versus-time of the LPM knobs against the Monte Carlo reference, on the six
 // comparison cases of tests/core/lpm_vs_mc_test.cpp. Prints a markdown table:
 // one row per setting, error columns averaged over the cases, LPM seconds summed.
-//   lpm_bench_accuracy [--quick] [--threads N]
+//   lpm_bench_accuracy [--quick] [--threads N] [--only SUBSTRING]
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -15,9 +15,11 @@ using namespace lpm::test;
 int main(int argc, char** argv) {
     bool quick = false;
     int threads = 0;
+    std::string only;  // run only the settings whose name contains this
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--quick")) quick = true;
         if (!std::strcmp(argv[i], "--threads") && i + 1 < argc) threads = std::atoi(argv[++i]);
+        if (!std::strcmp(argv[i], "--only") && i + 1 < argc) only = argv[++i];
     }
     ThreadLimit limit(threads);
     struct Setting {
@@ -36,12 +38,20 @@ int main(int argc, char** argv) {
     for (int b : {1, 4}) add("bins/face b=" + std::to_string(b), [b](LpmSettings& s) { s.binsPerFace = b; });
     add("no GMRES (plain source iteration)", [](LpmSettings& s) { s.krylov = false; });
     add("subdivide 2", [](LpmSettings& s) { s.subdivide = 2; });
+    add("step source everywhere", [](LpmSettings& s) { s.linearSource = 0; });
+    add("linear source everywhere", [](LpmSettings& s) { s.linearSource = 1; });
     for (double t : {1e-2, 1e-4}) {
         char buf[64];
         std::snprintf(buf, sizeof buf, "tolerance %.0e", t);
         add(buf, [t](LpmSettings& s) { s.tolerance = t; });
     }
     if (quick) settings.resize(2);
+    if (!only.empty()) {
+        std::vector<Setting> keep;
+        for (const Setting& st : settings)
+            if (st.name.find(only) != std::string::npos) keep.push_back(st);
+        settings = keep;
+    }
 
     const auto cases = comparisonCases();
     std::vector<Scene> scenes;
