@@ -29,6 +29,7 @@ struct LpmSettings {
                                 ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
                                 ///< inside each voxel (linear characteristics; 4x the unshot memory)
     double linearSourceAbove = 2.0;  ///< auto threshold: largest per-voxel optical depth
+    double linearSourceVoxelCap = 8.0;  ///< voxels optically thicker than this keep a constant source
     int subdivide = 1;          ///< solve on voxels split k x k x k (same medium), average back: for
                                 ///< optically thick voxels, where a voxel-constant source leaks light
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass
