@@ -177,6 +177,7 @@ int runCli(int argc, char** argv) {
     std::vector<std::string> suns, sunIrr;
     std::vector<double> sunAngle;
     bool noKrylov = false;
+    std::string sourceShape = "auto";
     std::string solveScale = "1";
 
     app.add_option("input", b.input, "input OpenVDB file (positional)");
@@ -239,6 +240,12 @@ int runCli(int argc, char** argv) {
     app.add_option("--subdivide", b.solver.subdivide,
                    "solve on voxels split k x k x k and average back (1..8): for optically thick voxels")
         ->default_val(b.solver.subdivide)->group(gS);
+    app.add_option("--source", sourceShape,
+                   "source inside a voxel: auto (linear when a voxel is thicker than optical depth 2), constant, "
+                   "linear (linear characteristics: leaks far less light through thick voxels, ~5x the time)")
+        ->default_val("auto")
+        ->check(CLI::IsMember({"auto", "constant", "linear"}))
+        ->group(gS);
     app.add_flag("--no-krylov", noKrylov, "never switch to GMRES acceleration (plain source iteration)")->group(gS);
     // Read as text and converted here: CLI11 would refuse "nan" without naming the allowed
     // range; checkOptions names the value and the range.
@@ -295,6 +302,7 @@ int runCli(int argc, char** argv) {
     }
 
     if (noKrylov) b.solver.krylov = false;
+    b.solver.linearSource = sourceShape == "linear" ? 1 : (sourceShape == "constant" ? 0 : -1);
     Log log;
     log.verbosity = quiet ? 0 : 1 + verbose;
     try {

@@ -141,11 +141,20 @@ Vec3 sampleCone(const Vec3& w, double halfAngle, double u1, double u2) {
     return t * (sinT * std::cos(phi)) + b * (sinT * std::sin(phi)) + w * cosT;
 }
 
-// Direct (uncollided) light arriving at local point x, weighted by f(world travel dir):
-// returns sum over one env sample and all suns of weight(w) * L * T, and calls
-// accum(w_world, rgb_value) for each contribution.
+double coneSolidAngle(double halfAngle) { return 2 * kPi * (1 - std::cos(halfAngle)); }
+double sunHalfAngle(const Sun& sun) { return 0.5 * sun.angularDiameterDeg * kPi / 180.0; }
+
+// Direct (uncollided) light arriving at local point x: one environment sample and one
+// sample per sun, each reported as accum(w_world travel direction, radiance or irradiance,
+// weight). With `mis` (a collision with outgoing travel direction mis->wOut), the weight
+// includes the balance-heuristic MIS weight against phase-function sampling, which
+// collidedRadiance counts when a phase-sampled ray escapes into the same light.
+struct MisPhase {
+    Vec3 wOut;
+    double g;
+};
 template <class Accum>
-void directLight(const Context& c, const Vec3& x, Pcg32& rng, Accum&& accum) {
+void directLight(const Context& c, const Vec3& x, Pcg32& rng, Accum&& accum, const MisPhase* mis = nullptr) {
     if (c.lights.env) {
         Vec3 toward;
         double pdf;
@@ -153,28 +162,67 @@ void directLight(const Context& c, const Vec3& x, Pcg32& rng, Accum&& accum) {
         const RGB Le = c.lights.env->sample(u1, u2, toward, pdf);
         if (pdf > 0 && !Le.isBlack()) {
             const double T = c.tracker.transmittance(x, c.Rinv * toward);
-            if (T > 0) accum(-toward, Le, T / pdf);
+            double w = T / pdf;
+            if (mis) w *= pdf / (pdf + henyeyGreenstein(dot(mis->wOut, -toward), mis->g));
+            if (T > 0) accum(-toward, Le, w);
         }
     }
     for (const Sun& sun : c.lights.suns) {
         const double u1 = rng.uniform(), u2 = rng.uniform();
-        const Vec3 toward = sampleCone(normalize(sun.toSun), 0.5 * sun.angularDiameterDeg * kPi / 180.0, u1, u2);
+        const double half = sunHalfAngle(sun);
+        const Vec3 toward = sampleCone(normalize(sun.toSun), half, u1, u2);
         const double T = c.tracker.transmittance(x, c.Rinv * toward);
-        if (T > 0) accum(-toward, sun.irradiance, T);
+        double w = T;  // irradiance E = radiance E / Omega over the cone, sampled with pdf 1 / Omega
+        if (mis && half > 0) {
+            const double pdfLight = 1.0 / coneSolidAngle(half);
+            w *= pdfLight / (pdfLight + henyeyGreenstein(dot(mis->wOut, -toward), mis->g));
+        }
+        if (T > 0) accum(-toward, sun.irradiance, w);
     }
+}
+
+// Light reaching a collision along a phase-sampled direction that escaped the volume
+// (toward = world direction toward the light, pdfPhase its sampling density): the
+// environment and any sun disc it points into, with the MIS weights complementary to
+// directLight's. Delta suns (diameter 0) are reached by next-event estimation only.
+RGB escapedLight(const Context& c, const Vec3& toward, double pdfPhase) {
+    double L[3] = {0, 0, 0};
+    if (c.lights.env) {
+        const RGB Le = c.lights.env->lookup(toward);
+        const double pdfEnv = c.lights.env->pdf(toward);
+        const double w = pdfPhase / (pdfPhase + pdfEnv);
+        for (int k = 0; k < 3; ++k) L[k] += Le[k] * w;
+    }
+    for (const Sun& sun : c.lights.suns) {
+        const double half = sunHalfAngle(sun);
+        if (half <= 0 || dot(toward, normalize(sun.toSun)) < std::cos(half)) continue;
+        const double omega = coneSolidAngle(half), pdfLight = 1.0 / omega;
+        const double w = pdfPhase / (pdfPhase + pdfLight);
+        for (int k = 0; k < 3; ++k) L[k] += sun.irradiance[k] / omega * w;
+    }
+    return RGB(float(L[0]), float(L[1]), float(L[2]));
 }
 
 // Radiance arriving at local point o from world look direction `look` (light travelling
 // along -look), excluding uncollided environment and sun light: emission plus everything
-// scattered at least once.
+// scattered at least once. Direct light at each collision combines next-event estimation
+// and phase sampling with MIS (balance heuristic), so strongly forward or backward phase
+// functions (|g| -> 1) against small bright suns stay low-variance.
 RGB collidedRadiance(const Context& c, Vec3 o, Vec3 look, Pcg32& rng) {
     double L[3] = {0, 0, 0};
     double beta[3] = {1, 1, 1};
     const double g = c.m.g;
+    double pdfPhase = 0;  // density of the last phase-sampled direction (0: the primary ray)
     for (int depth = 0;; ++depth) {
         Vec3 hit;
         size_t vox;
-        if (!c.tracker.collide(o, c.Rinv * look, rng, hit, vox)) break;
+        if (!c.tracker.collide(o, c.Rinv * look, rng, hit, vox)) {
+            if (pdfPhase > 0) {
+                const RGB Le = escapedLight(c, look, pdfPhase);
+                for (int k = 0; k < 3; ++k) L[k] += beta[k] * Le[k];
+            }
+            break;
+        }
         const RGB& alb = c.m.albedo;
         if (c.m.hasEmission()) {
             const RGB& Le = c.m.emission[vox];
@@ -183,12 +231,17 @@ RGB collidedRadiance(const Context& c, Vec3 o, Vec3 look, Pcg32& rng) {
         for (int k = 0; k < 3; ++k) beta[k] *= alb[k];
         if (beta[0] == 0 && beta[1] == 0 && beta[2] == 0) break;
         const Vec3 wOut = -look;  // travel direction of the light we are estimating
-        directLight(c, hit, rng, [&](const Vec3& wIn, const RGB& Li, double w) {
-            const double p = henyeyGreenstein(dot(wOut, wIn), g) * w;
-            for (int k = 0; k < 3; ++k) L[k] += beta[k] * Li[k] * p;
-        });
+        const MisPhase mis{wOut, g};
+        directLight(
+            c, hit, rng,
+            [&](const Vec3& wIn, const RGB& Li, double w) {
+                const double p = henyeyGreenstein(dot(wOut, wIn), g) * w;
+                for (int k = 0; k < 3; ++k) L[k] += beta[k] * Li[k] * p;
+            },
+            &mis);
         const double u1 = rng.uniform(), u2 = rng.uniform();
         const Vec3 wIn = sampleHenyeyGreenstein(wOut, g, u1, u2);
+        pdfPhase = henyeyGreenstein(dot(wOut, wIn), g);
         look = -wIn;
         o = hit;
         if (depth >= c.rouletteDepth) {

@@ -42,6 +42,8 @@ int main(int argc, char** argv) {
         LpmSettings lin;
         lin.linearSource = 1;
         settings.push_back({"linear source", lin});
+        lin.subdivide = 2;
+        settings.push_back({"linear source, subdivide 2", lin});
         if (explore) {
             auto add = [&](const std::string& name, auto&& mod) {
                 LpmSettings x = step;
@@ -67,6 +69,7 @@ int main(int argc, char** argv) {
             std::vector<McVoxelEstimate> mc;
             const double tMc = secondsOf([&] { mc = mcVoxelSH(sc.medium, sc.lights, sampleVoxels(sc.medium, 48), samples, 2); });
             for (const Setting& st : settings) {
+                if (st.s.subdivide > 1 && n > 16) continue;  // minutes per solve
                 LpmResult r;
                 const double t = secondsOf([&] { r = solveLpm(sc.medium, sc.lights, st.s); });
                 const Comparison e = compare(r, mc);

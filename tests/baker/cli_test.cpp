@@ -75,6 +75,8 @@ TEST(Cli, UsageErrorsExit1) {
                        "usage", {"--albedo"});
     expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--g", "1"}, dir), 1,
                        "usage", {"--g"});
+    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--source", "cubic"}, dir),
+                       1, "usage", {"--source", "cubic"});
     expectOneLineError(runLpmbake({"render", dataPath("vdb/torus01.vdb"), "-o", dir + "/x.jpg"}, dir), 1, "usage",
                        {".exr", ".png"});
     EXPECT_FALSE(fs::exists(out));
@@ -124,6 +126,7 @@ TEST(Cli, BakeInfoAndStats) {
     const auto r = runLpmbake(a, dir);
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_NE(r.err.find("solver: "), std::string::npos) << "solver decisions go to stderr";
+    EXPECT_NE(r.err.find("source inside voxels"), std::string::npos) << "the source-shape decision is reported";
     EXPECT_EQ(tempFilesIn(dir), 0u);
 
     const BakeFile b = readBakeFile(out);
@@ -150,7 +153,7 @@ TEST(Cli, BakeInfoAndStats) {
                           "lpm:g", "lpm:lights", "lpm:suns", "lpm:env_file", "lpm:env_colorspace",
                           "lpm:directions_per_face", "lpm:rays_per_voxel", "lpm:tolerance", "lpm:max_orders",
                           "lpm:passes", "lpm:residual", "lpm:input_file", "lpm:input_grid", "lpm:timings",
-                          "lpm:storage", "lpm:decisions"})
+                          "lpm:storage", "lpm:decisions", "lpm:source_shape"})
         EXPECT_TRUE((*b.meta)[k]) << k;
     EXPECT_DOUBLE_EQ(metaDouble(*b.meta, "lpm:density_scale", 0), 0.5);
     EXPECT_FLOAT_EQ(metaRgb(*b.meta, "lpm:albedo", RGB(0.f)).g, 0.85f);

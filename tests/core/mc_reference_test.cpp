@@ -60,7 +60,33 @@ TEST_P(McFurnace, AlbedoOneUniformEnvironmentGivesL0) {
     EXPECT_LT(std::fabs(pooled), kZ * std::sqrt(pooledVar));
     EXPECT_LT(std::sqrt(pooledVar) / expect0, 2e-3);
 }
-INSTANTIATE_TEST_SUITE_P(G, McFurnace, ::testing::Values(0.0, 0.7));
+INSTANTIATE_TEST_SUITE_P(G, McFurnace, ::testing::Values(0.0, 0.7, 0.99, -0.99));
+
+TEST(McReference, SunDiscWithMisAgreesWithDeltaSun) {
+    // A sun of 0.53 degrees is reached by next-event estimation and by phase sampling,
+    // weighted by MIS; a delta sun only by next-event estimation. At g = 0.9 (phase lobe
+    // ~6 degrees wide, far wider than the disc) both give the same S to within noise and a
+    // tiny cone blur; a wrong or double-counted MIS weight would not.
+    Medium m = makeVolume(VolumeKind::Cloud, 10, 1.0, 5);
+    scaleToMaxOpticalDepth(m, 6.0);
+    m.albedo = RGB(0.95f);
+    m.g = 0.9;
+    const Vec3 toSun = normalize(Vec3{0.2, 1.0, 0.4});
+    Lights disc, delta;
+    disc.suns.push_back({toSun, RGB(4.0f), 0.53});
+    delta.suns.push_back({toSun, RGB(4.0f), 0.0});
+    const auto vox = someVoxels(m, 12, 6);
+    const auto a = mcVoxelSH(m, disc, vox, 80000, 0), b = mcVoxelSH(m, delta, vox, 80000, 0, McSettings{7});
+    double pooled = 0, pooledVar = 0;
+    for (size_t i = 0; i < a.size(); ++i) {
+        const double d = a[i].mean[0] - b[i].mean[0], se = std::hypot(a[i].stdErr[0], b[i].stdErr[0]);
+        EXPECT_LT(std::fabs(d), kZ * se + 2e-3 * b[i].mean[0]) << "voxel " << a[i].voxel;
+        pooled += d / b[i].mean[0] / a.size();
+        pooledVar += (se / b[i].mean[0]) * (se / b[i].mean[0]) / (a.size() * a.size());
+    }
+    EXPECT_LT(std::fabs(pooled), kZ * std::sqrt(pooledVar) + 2e-3);
+    EXPECT_LT(std::sqrt(pooledVar), 0.01);
+}
 
 TEST(McReference, SunThroughAbsorbingBoxMatchesClosedForm) {
     // Albedo 0: S = E p(w, w_sun) T, so S_lm = E T g^l Y_lm(w_sun) averaged over the voxel.
