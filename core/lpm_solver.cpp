@@ -331,7 +331,9 @@ Medium subdivided(const Medium& m, int k) {
 }
 }  // namespace
 
-LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) {
+// gOut: the asymmetry of the phase function that S is defined with (differs from m.g when
+// m is the delta-M-scaled medium).
+static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSettings& s, double gOut) {
     const auto t0 = Clock::now();
     m.validate();
     if (s.subdivide < 1 || s.subdivide > 8)
@@ -392,7 +394,7 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
 
     // Decisions: SH order and angular resolution of the unshot buffers.
     res.shOrder = s.shOrder;
-    if (m.g == 0.0 && s.shOrder > 0) {
+    if (gOut == 0.0 && s.shOrder > 0) {
         res.shOrder = 0;
         res.decisions.push_back("SH order 0: the phase function is isotropic (g = 0), so S has no directional part");
     }
@@ -461,7 +463,7 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
                 shEval(R * sd[j], y);
                 for (int k = 0; k < nc; ++k) ybar[size_t(i) * nc + k] += y[k] * sw[j] / quad.weight(i);
             }
-            for (int k = 0; k < nc; ++k) ybar[size_t(i) * nc + k] *= std::pow(m.g, shBand(k));
+            for (int k = 0; k < nc; ++k) ybar[size_t(i) * nc + k] *= std::pow(gOut, shBand(k));
         }
     }
 
@@ -643,7 +645,7 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
             shEval(wWorld, y);
             j.shCoef.resize(nc);
             for (int k = 0; k < nc; ++k)
-                j.shCoef[k] = y[k] * std::pow(m.g, shBand(k)) * capBandFactor(shBand(k), half) / V;
+                j.shCoef[k] = y[k] * std::pow(gOut, shBand(k)) * capBandFactor(shBand(k), half) / V;
             const std::vector<double> row = ff.rowForCone(j.w, half);
             j.binCoef.resize(nb);
             for (int d = 0; d < nb; ++d) j.binCoef[d] = row[d] / (ff.binWeight(d) * V);
@@ -869,6 +871,43 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) 
     }
     res.seconds = secondsSince(t0);
     return res;
+}
+
+LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& s) {
+    m.validate();
+    if (s.deltaM < -1 || s.deltaM > 1) throw Error("LPM", "delta-M must be -1 (auto), 0 or 1, got " + std::to_string(s.deltaM));
+    // Subdivision solves the refined medium through solveLpm again: delta-M is applied there.
+    if (s.subdivide > 1 || s.deltaM == 0 || m.g <= 0) return solveImpl(m, lights, s, m.g);
+    const bool grey = m.albedo.r == m.albedo.g && m.albedo.g == m.albedo.b;
+    if (s.deltaM < 0 && m.g < s.deltaMAbove) return solveImpl(m, lights, s, m.g);
+    if (!grey) {
+        // The scaled extinction sigma_t (1 - c f) would differ per channel; the sweeps share
+        // one sigma_t for RGB.
+        LpmResult r = solveImpl(m, lights, s, m.g);
+        r.decisions.insert(r.decisions.begin(), "no delta-M: the albedo is not grey (the scaled extinction would "
+                                                "differ per channel)");
+        return r;
+    }
+    // Delta-M (Wiscombe 1977) with f = g^2 (delta-Eddington truncation): the forward peak's
+    // share f of the phase function is treated as unscattered light. Similarity transform:
+    //   sigma_t' = sigma_t (1 - c f),  c' = c (1 - f) / (1 - c f),  g' = (g - f) / (1 - f)
+    // keeps sigma_a (so absorption and emission are unchanged) and the transport
+    // moments; the propagation then sees a moderate g' that its bins can resolve. S is
+    // still that of the true phase function: its SH are g^l times those of the radiance.
+    const double g = m.g, f = g * g, c = m.albedo.r;
+    Medium sm = m;
+    const float k = float(1 - c * f);
+    for (float& sg : sm.sigmaT) sg *= k;
+    sm.albedo = RGB(float(c * (1 - f) / (1 - c * f)));
+    sm.g = (g - f) / (1 - f);
+    LpmResult r = solveImpl(sm, lights, s, g);
+    char buf[240];
+    std::snprintf(buf, sizeof buf,
+                  "delta-M forward-peak truncation: g = %.4g > %.3g; f = g^2 = %.4g of scattering treated as "
+                  "unscattered; propagation with g' = %.4g, albedo %.4g, extinction x %.4g",
+                  g, s.deltaM > 0 ? 0.0 : s.deltaMAbove, f, sm.g, double(sm.albedo.r), double(k));
+    r.decisions.insert(r.decisions.begin(), buf);
+    return r;
 }
 
 }  // namespace lpm

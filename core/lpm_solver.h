@@ -30,6 +30,9 @@ struct LpmSettings {
                                 ///< inside each voxel (linear characteristics; 4x the unshot memory)
     double linearSourceAbove = 2.0;  ///< auto threshold: largest per-voxel optical depth
     double linearSourceVoxelCap = 8.0;  ///< voxels optically thicker than this keep a constant source
+    int deltaM = -1;            ///< forward-peak truncation (delta-M, f = g^2): -1 auto (on when
+                                ///< g >= deltaMAbove and the albedo is grey), 0 off, 1 on (g > 0, grey albedo)
+    double deltaMAbove = 0.9;   ///< auto threshold on g
     int subdivide = 1;          ///< solve on voxels split k x k x k (same medium), average back: for
                                 ///< optically thick voxels, where a voxel-constant source leaks light
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass

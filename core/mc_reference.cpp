@@ -285,6 +285,13 @@ std::vector<McVoxelEstimate> mcVoxelSH(const Medium& m, const Lights& lights, co
     const int nc = shCount(shOrder);
     std::vector<double> gl(nc);
     for (int k = 0; k < nc; ++k) gl[k] = std::pow(m.g, shBand(k));
+    // Lobes for the scattered-light direction: with |g| >= 0.5, the radiance scattered once
+    // from a sun peaks around the sun's travel direction (g > 0) or against it (g < 0).
+    std::vector<Vec3> lobes;
+    const double lobeG = std::fabs(m.g);
+    if (lobeG >= 0.5)
+        for (const Sun& sun : lights.suns)
+            if (!sun.irradiance.isBlack()) lobes.push_back(normalize(m.g > 0 ? -sun.toSun : sun.toSun));
     std::vector<McVoxelEstimate> out(voxels.size());
     parallelForChunks(voxels.size(), 1, [&](size_t b, size_t e) {
         for (size_t vi = b; vi < e; ++vi) {
@@ -306,10 +313,26 @@ std::vector<McVoxelEstimate> mcVoxelSH(const Medium& m, const Lights& lights, co
                         for (int ch = 0; ch < 3; ++ch) acc[size_t(k) * 3 + ch] += gl[k] * y[k] * L[ch] * weight;
                 };
                 directLight(c, x, rng, add);
+                // Scattered light: one direction from a defensive mixture of the uniform
+                // sphere and, with a peaked phase function and suns, HG lobes around each
+                // sun's aureole (forward) or glory (backward) direction.
+                const double u0 = lobes.empty() ? 0.0 : rng.uniform();
                 const double u1 = rng.uniform(), u2 = rng.uniform();
-                const Vec3 wTravel = uniformSphere(u1, u2);
+                Vec3 wTravel;
+                if (lobes.empty() || u0 < 0.5) {
+                    wTravel = uniformSphere(u1, u2);
+                } else {
+                    const size_t k = std::min(lobes.size() - 1, size_t((u0 - 0.5) * 2 * lobes.size()));
+                    wTravel = sampleHenyeyGreenstein(lobes[k], lobeG, u1, u2);
+                }
+                double pdf = 1.0 / kFourPi;
+                if (!lobes.empty()) {
+                    double lobePdf = 0;
+                    for (const Vec3& l : lobes) lobePdf += henyeyGreenstein(dot(l, wTravel), lobeG);
+                    pdf = 0.5 * pdf + 0.5 * lobePdf / lobes.size();
+                }
                 const RGB Lc = collidedRadiance(c, x, -wTravel, rng);
-                if (!Lc.isBlack()) add(wTravel, Lc, kFourPi);
+                if (!Lc.isBlack()) add(wTravel, Lc, 1.0 / pdf);
                 w.add(acc);
             }
             McVoxelEstimate& est = out[vi];

@@ -40,6 +40,8 @@ int main(int argc, char** argv) {
     add("subdivide 2", [](LpmSettings& s) { s.subdivide = 2; });
     add("step source everywhere", [](LpmSettings& s) { s.linearSource = 0; });
     add("linear source everywhere", [](LpmSettings& s) { s.linearSource = 1; });
+    add("delta-M off", [](LpmSettings& s) { s.deltaM = 0; });
+    add("delta-M wherever g > 0", [](LpmSettings& s) { s.deltaM = 1; });
     for (double t : {1e-2, 1e-4}) {
         char buf[64];
         std::snprintf(buf, sizeof buf, "tolerance %.0e", t);
