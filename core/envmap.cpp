@@ -137,7 +137,31 @@ RGB EnvMap::sample(double u1, double u2, Vec3& towardLight, double& pdfOut) cons
     return pixel(x, y);
 }
 
-void EnvMap::forEachSubPixel(int sub, const std::function<void(const Vec3&, double, const RGB&)>& f) const {
+std::vector<EnvHotPixel> EnvMap::hotPixels(double minShare, int maxCount) const {
+    std::vector<EnvHotPixel> hot;
+    if (total_ <= 0 || maxCount <= 0) return hot;
+    const double dPhi = 2 * kPi / width_;
+    for (int y = 0; y < height_; ++y)
+        for (int x = 0; x < width_; ++x) {
+            const double share = pixelPdf_[size_t(y) * width_ + x];
+            if (!(share >= minShare)) continue;
+            const double c0 = std::cos(rowTheta(y, height_)), c1 = std::cos(rowTheta(y + 1, height_));
+            EnvHotPixel h;
+            h.x = x;
+            h.y = y;
+            h.omega = dPhi * (c0 - c1);
+            h.toward = toWorld(dirFromUTheta((x + 0.5) / width_, std::acos(0.5 * (c0 + c1))));
+            h.radiance = pixel(x, y);
+            h.share = share;
+            hot.push_back(h);
+        }
+    std::stable_sort(hot.begin(), hot.end(), [](const EnvHotPixel& a, const EnvHotPixel& b) { return a.share > b.share; });
+    if (hot.size() > size_t(maxCount)) hot.resize(size_t(maxCount));
+    return hot;
+}
+
+void EnvMap::forEachSubPixel(int sub, const std::function<void(const Vec3&, double, const RGB&)>& f,
+                             const std::vector<unsigned char>* skip) const {
     sub = std::max(1, sub);
     const int W = width_ * sub, H = height_ * sub;
     const double dPhi = 2 * kPi / W;
@@ -146,7 +170,8 @@ void EnvMap::forEachSubPixel(int sub, const std::function<void(const Vec3&, doub
         const double omega = dPhi * (std::cos(t0) - std::cos(t1));
         const double tc = std::acos(0.5 * (std::cos(t0) + std::cos(t1)));
         for (int x = 0; x < W; ++x) {
-            const RGB& L = pixel(x / sub, y / sub);
+            static const RGB black(0.f);
+            const RGB& L = skip && (*skip)[size_t(y / sub) * width_ + x / sub] ? black : pixel(x / sub, y / sub);
             f(toWorld(dirFromUTheta((x + 0.5) / W, tc)), omega, L);
         }
     }

@@ -14,6 +14,15 @@
 
 namespace lpm {
 
+/// A pixel carrying a large share of the environment's power (a sun in an HDRI).
+struct EnvHotPixel {
+    int x = 0, y = 0;
+    Vec3 toward;          ///< world direction toward the pixel's centre (unit)
+    double omega = 0;     ///< the pixel's solid angle (sr)
+    RGB radiance;
+    double share = 0;     ///< share of the map's power (mean RGB x solid angle)
+};
+
 class EnvMap {
 public:
     EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDegrees = 0.0,
@@ -39,7 +48,13 @@ public:
     /// Partitions the sphere into width*sub x height*sub sub-pixels and calls
     /// f(direction toward light (world), solid angle, radiance) for each. The solid
     /// angles sum to 4 pi exactly (up to rounding).
-    void forEachSubPixel(int sub, const std::function<void(const Vec3&, double, const RGB&)>& f) const;
+    /// Pixels with skip[y * width + x] != 0 are reported black when `skip` is given.
+    void forEachSubPixel(int sub, const std::function<void(const Vec3&, double, const RGB&)>& f,
+                         const std::vector<unsigned char>* skip = nullptr) const;
+
+    /// Pixels holding at least `minShare` of the map's power each, largest first, at
+    /// most `maxCount`.
+    std::vector<EnvHotPixel> hotPixels(double minShare, int maxCount) const;
 
     /// Total power-like integral of mean RGB over the sphere (for diagnostics).
     double integral() const { return total_; }

@@ -471,6 +471,7 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
     // local w arrives from world direction -R w). Every sub-pixel lands in one bin.
     std::vector<RGB> envBin(nd, RGB(0.f));
     const bool hasEnv = lights.env && lights.env->integral() > 0;
+    std::vector<Sun> suns = lights.suns;  // and the environment's hot pixels
     if (hasEnv) {
         const EnvMap& env = *lights.env;
         // Sub-pixels fine enough that each direction bin gets >= ~1024 of them; each bin's
@@ -479,12 +480,39 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         // in the bin that contains it.
         const double pixels = double(env.width()) * env.height();
         const int sub = std::clamp(int(std::ceil(std::sqrt(1024.0 * nd / pixels))), 1, 256);
+        // Hot pixels (a sun in an HDRI): binned, their light would travel along the bin's
+        // directions, up to half a bin off, and cast shifted shadows (ray effects). They
+        // are taken out of the bins and swept like suns in their own direction, with the
+        // pixel's solid angle as the disc.
+        std::vector<unsigned char> skip;
+        if (s.envHotShare > 0) {
+            const std::vector<EnvHotPixel> hot = env.hotPixels(s.envHotShare, 16);
+            double share = 0;
+            for (const EnvHotPixel& h : hot) {
+                if (skip.empty()) skip.assign(size_t(env.width()) * env.height(), 0);
+                skip[size_t(h.y) * env.width() + h.x] = 1;
+                const double half = std::acos(std::max(-1.0, 1 - h.omega / (2 * kPi)));
+                suns.push_back({h.toward, h.radiance * float(h.omega), 2 * half * 180.0 / kPi});
+                share += h.share;
+            }
+            if (!hot.empty()) {
+                char buf[200];
+                std::snprintf(buf, sizeof buf,
+                              "environment: %zu hot pixel(s) with %.1f%% of its power swept as suns in their exact "
+                              "direction (each >= %.3g of the power)",
+                              hot.size(), 100 * share, s.envHotShare);
+                res.decisions.push_back(buf);
+            }
+        }
         std::vector<double> acc(size_t(nd) * 4, 0.0);
-        env.forEachSubPixel(sub, [&](const Vec3& toward, double omega, const RGB& L) {
-            const int i = quad.indexOf(Rinv * (-toward));
-            for (int c = 0; c < 3; ++c) acc[size_t(i) * 4 + c] += L[c] * omega;
-            acc[size_t(i) * 4 + 3] += omega;
-        });
+        env.forEachSubPixel(
+            sub,
+            [&](const Vec3& toward, double omega, const RGB& L) {
+                const int i = quad.indexOf(Rinv * (-toward));
+                for (int c = 0; c < 3; ++c) acc[size_t(i) * 4 + c] += L[c] * omega;
+                acc[size_t(i) * 4 + 3] += omega;
+            },
+            skip.empty() ? nullptr : &skip);
         for (int i = 0; i < nd; ++i) {
             const double om = acc[size_t(i) * 4 + 3];
             for (int c = 0; c < 3; ++c) envBin[i][c] = om > 0 ? float(acc[size_t(i) * 4 + c] / om) : 0.0f;
@@ -631,7 +659,7 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
                 jobs.push_back(std::move(j));
             }
         }
-        for (const Sun& sun : lights.suns) {
+        for (const Sun& sun : suns) {
             if (sun.irradiance.isBlack()) continue;
             const Vec3 wWorld = normalize(-sun.toSun);
             Job j;

@@ -33,6 +33,8 @@ struct LpmSettings {
     int deltaM = -1;            ///< forward-peak truncation (delta-M, f = g^2): -1 auto (on when
                                 ///< g >= deltaMAbove and the albedo is grey), 0 off, 1 on (g > 0, grey albedo)
     double deltaMAbove = 0.9;   ///< auto threshold on g
+    double envHotShare = 0.01;  ///< environment pixels holding at least this share of its power
+                                ///< (at most 16) are swept like suns, in their exact direction; 0 = off
     int subdivide = 1;          ///< solve on voxels split k x k x k (same medium), average back: for
                                 ///< optically thick voxels, where a voxel-constant source leaks light
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass
