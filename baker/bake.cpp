@@ -340,6 +340,8 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     i32("max_orders", o.solver.maxOrders);
     i32("subdivide", o.solver.subdivide);
     str("source_shape", o.solver.linearSource < 0 ? "auto" : (o.solver.linearSource ? "linear" : "constant"));
+    str("delta_m", o.solver.deltaM < 0 ? "auto" : (o.solver.deltaM ? "on" : "off"));
+    dbl("env_hot_share", o.solver.envHotShare);
     dbl("solve_scale", o.solveScale);
     meta.insertMeta("lpm:solve_grid_dims",
                     openvdb::Vec3IMetadata(openvdb::Vec3i(sum.solveDims[0], sum.solveDims[1], sum.solveDims[2])));

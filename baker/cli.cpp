@@ -177,7 +177,7 @@ int runCli(int argc, char** argv) {
     std::vector<std::string> suns, sunIrr;
     std::vector<double> sunAngle;
     bool noKrylov = false;
-    std::string sourceShape = "auto";
+    std::string sourceShape = "auto", deltaM = "auto";
     std::string solveScale = "1";
 
     app.add_option("input", b.input, "input OpenVDB file (positional)");
@@ -246,6 +246,18 @@ int runCli(int argc, char** argv) {
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "constant", "linear"}))
         ->group(gS);
+    app.add_option("--delta-m", deltaM,
+                   "forward-peak truncation: auto (when g >= 0.9 and the albedo is grey), on (any g > 0, grey "
+                   "albedo), off")
+        ->default_val("auto")
+        ->check(CLI::IsMember({"auto", "on", "off"}))
+        ->group(gS);
+    app.add_option("--env-hot-share", b.solver.envHotShare,
+                   "environment pixels holding at least this share of its power (a sun in an HDRI; at most 16) "
+                   "are swept like suns in their exact direction; 0 = off")
+        ->default_val(b.solver.envHotShare)
+        ->check(CLI::Range(0.0, 1.0))
+        ->group(gS);
     app.add_flag("--no-krylov", noKrylov, "never switch to GMRES acceleration (plain source iteration)")->group(gS);
     // Read as text and converted here: CLI11 would refuse "nan" without naming the allowed
     // range; checkOptions names the value and the range.
@@ -303,6 +315,7 @@ int runCli(int argc, char** argv) {
 
     if (noKrylov) b.solver.krylov = false;
     b.solver.linearSource = sourceShape == "linear" ? 1 : (sourceShape == "constant" ? 0 : -1);
+    b.solver.deltaM = deltaM == "on" ? 1 : (deltaM == "off" ? 0 : -1);
     Log log;
     log.verbosity = quiet ? 0 : 1 + verbose;
     try {

@@ -195,7 +195,10 @@ void runRender(const RenderOptions& o, const Log& log) {
     if (!writer) throw OutputError("render", "cannot create an image writer for '" + o.output + "': " + OIIO::geterror());
     if (!writer->open(out.tempPath(), spec) || !writer->write_image(OIIO::TypeDesc::FLOAT, img.data()) ||
         !writer->close())
-        throw OutputError("render", "cannot write '" + out.tempPath() + "': " + writer->geterror());
+    {
+        const std::string why = out.failureReason();
+        throw OutputError("render", "cannot write '" + out.finalPath() + "': " + (why.empty() ? writer->geterror() : why));
+    }
     out.commit();
     log.note("wrote " + o.output + " (" + std::to_string(o.width) + "x" + std::to_string(o.height) + ", " +
              (ext == ".png" ? std::string("sRGB view") : working) + ")");

@@ -2,6 +2,7 @@
 #include "vdb_io/atomic_file.h"
 
 #include <fcntl.h>
+#include <sys/statvfs.h>
 #include <signal.h>
 #include <unistd.h>
 
@@ -64,6 +65,9 @@ AtomicOutput::AtomicOutput(const std::string& finalPath, const std::vector<std::
     if (dir.empty()) dir = ".";
     if (!fs::is_directory(dir))
         throw OutputError(kComp, "output directory '" + dir.string() + "' does not exist (for '" + final_ + "')");
+    if (::access(dir.c_str(), W_OK) != 0)
+        throw OutputError(kComp, "cannot write to output directory '" + dir.string() + "': " + std::strerror(errno) +
+                                     " (for '" + final_ + "')");
     temp_ = (dir / ("." + p.stem().string() + ".lpmtmp-" + std::to_string(::getpid()) + p.extension().string())).string();
     if (temp_.size() < sizeof(g_temp)) {
         std::memcpy(g_temp, temp_.c_str(), temp_.size() + 1);
@@ -75,6 +79,17 @@ AtomicOutput::AtomicOutput(const std::string& finalPath, const std::vector<std::
 AtomicOutput::~AtomicOutput() {
     if (!committed_) ::unlink(temp_.c_str());
     g_active = false;
+}
+
+std::string AtomicOutput::failureReason() const {
+    fs::path dir = fs::path(final_).parent_path();
+    if (dir.empty()) dir = ".";
+    struct statvfs st {};
+    if (::statvfs(dir.c_str(), &st) != 0) return "";
+    if (st.f_flag & ST_RDONLY) return "the file system of '" + dir.string() + "' is read-only";
+    const unsigned long long freeBytes = static_cast<unsigned long long>(st.f_bavail) * st.f_frsize;
+    if (freeBytes >= (1ull << 20)) return "";
+    return "no space left on device ('" + dir.string() + "' has " + std::to_string(freeBytes / 1024) + " KiB free)";
 }
 
 void AtomicOutput::commit() {

@@ -12,7 +12,7 @@ namespace lpm {
 class AtomicOutput {
 public:
     /// Throws OutputError if `finalPath` is one of `inputs` (same file or same path), or its
-    /// directory does not exist.
+    /// directory does not exist or is not writable (read-only file system, permissions).
     AtomicOutput(const std::string& finalPath, const std::vector<std::string>& inputs);
     ~AtomicOutput();  ///< removes the temporary file unless commit() succeeded
     AtomicOutput(const AtomicOutput&) = delete;
@@ -26,6 +26,11 @@ public:
     /// Test hook: with LPM_TEST_KILL_BEFORE_RENAME=1 in the environment the process
     /// SIGKILLs itself here, as a farm would kill a job in the middle of writing.
     void commit();
+
+    /// Why a write into the temporary file most likely failed, from the file system's own
+    /// state: "no space left on device (...)" when the output's file system has less than
+    /// 1 MiB free, else "" (the writer's own message is then the best one).
+    std::string failureReason() const;
 
 private:
     std::string final_, temp_;

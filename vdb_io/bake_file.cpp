@@ -179,7 +179,10 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
     } catch (const OutputError&) {
         throw;
     } catch (const std::exception& e) {
-        throw OutputError("output", "cannot write '" + out.tempPath() + "' (for '" + o.path + "'): " + e.what());
+        // OpenVDB reports a full disk as whatever failed next (even "grid type is not
+        // registered"): name the file system's state when it explains the failure.
+        const std::string why = out.failureReason();
+        throw OutputError("output", "cannot write '" + o.path + "': " + (why.empty() ? std::string(e.what()) : why));
     }
     out.commit();
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

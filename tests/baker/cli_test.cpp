@@ -2,6 +2,8 @@
 // stats, info, render, atomic output. Cheap solver settings keep it fast.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+
 #include <sys/stat.h>
 
 #include <openvdb/tools/LevelSetSphere.h>
@@ -226,6 +228,34 @@ TEST(Cli, OutputErrorsExit3AndInputUntouched) {
     EXPECT_EQ(fs::file_size(in), size);
     a = torusArgs(dir + "/no/such/dir/out.vdb");
     expectOneLineError(runLpmbake(a, dir), 3, "output", {"does not exist"});
+}
+
+// A full disk: the bake is written to a 64 KiB tmpfs. Mounting needs root (as in CI);
+// elsewhere the test says why it skips. Also a read-only output directory.
+TEST(Cli, FullDiskAndReadOnlyDirExit3WithoutPartialFile) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string small = dir + "/small_fs";
+    fs::create_directories(small);
+    const std::string mnt = "mount -t tmpfs -o size=64k lpmbake_test_full " + small + " 2>/dev/null";
+    if (std::system(mnt.c_str()) != 0) GTEST_SKIP() << "cannot mount a small tmpfs here (needs root)";
+    struct Unmount {
+        std::string path;
+        ~Unmount() { (void)std::system(("umount " + path + " 2>/dev/null").c_str()); }
+    } unmount{small};
+    expectOneLineError(runLpmbake(torusArgs(small + "/out.vdb"), dir), 3, "output", {"out.vdb", "no space left"});
+    EXPECT_FALSE(fs::exists(small + "/out.vdb"));
+    EXPECT_EQ(tempFilesIn(small), 0u) << "the temporary file is removed";
+    EXPECT_TRUE(fs::is_empty(small));
+
+    // Read-only directory (chmod does not bind root: remount the tmpfs read-only).
+    const std::string ro = "mount -o remount,ro " + small + " 2>/dev/null";
+    if (std::system(ro.c_str()) == 0) {
+        // Refused before any work: the probe at start-up names the directory and the reason.
+        const auto r = runLpmbake(torusArgs(small + "/out.vdb"), dir);
+        expectOneLineError(r, 3, "output", {"out.vdb", "Read-only file system"});
+        EXPECT_EQ(r.err.find("solver:"), std::string::npos) << "no solve before the refusal";
+        EXPECT_TRUE(fs::is_empty(small));
+    }
 }
 
 // A farm kills the job after the data is written but before the rename: nothing may
