@@ -247,8 +247,8 @@ int runCli(int argc, char** argv) {
         ->check(CLI::IsMember({"auto", "constant", "linear"}))
         ->group(gS);
     app.add_option("--delta-m", deltaM,
-                   "forward-peak truncation: auto (when g >= 0.9 and the albedo is grey), on (any g > 0, grey "
-                   "albedo), off")
+                   "forward-peak truncation (delta-M): auto and on apply it for g > 0 with a grey albedo; off "
+                   "propagates the phase function unscaled")
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->group(gS);

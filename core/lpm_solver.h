@@ -30,9 +30,9 @@ struct LpmSettings {
                                 ///< inside each voxel (linear characteristics; 4x the unshot memory)
     double linearSourceAbove = 2.0;  ///< auto threshold: largest per-voxel optical depth
     double linearSourceVoxelCap = 8.0;  ///< voxels optically thicker than this keep a constant source
-    int deltaM = -1;            ///< forward-peak truncation (delta-M, f = g^2): -1 auto (on when
-                                ///< g >= deltaMAbove and the albedo is grey), 0 off, 1 on (g > 0, grey albedo)
-    double deltaMAbove = 0.9;   ///< auto threshold on g
+    int deltaM = -1;            ///< forward-peak truncation (delta-M, f = g^4): -1 auto (on when
+                                ///< g > deltaMAbove and the albedo is grey), 0 off, 1 on (g > 0, grey albedo)
+    double deltaMAbove = 0.0;   ///< auto threshold on g (measured better for g = 0.5, 0.85, 0.9, 0.99)
     double envHotShare = 0.01;  ///< environment pixels holding at least this share of its power
                                 ///< (at most 16) are swept like suns, in their exact direction; 0 = off
     int subdivide = 1;          ///< solve on voxels split k x k x k (same medium), average back: for

@@ -39,7 +39,7 @@ int main(int argc, char** argv) {
     settings.push_back({"no delta-M", plain, false});
     LpmSettings dm;
     dm.deltaM = 1;
-    settings.push_back({"delta-M (f = g^2)", dm, true});
+    settings.push_back({"delta-M (f = g^4)", dm, true});
     LpmSettings fine = plain;
     fine.binsPerFace = 4;
     settings.push_back({"no delta-M, b = 4", fine, false});

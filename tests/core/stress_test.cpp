@@ -198,7 +198,7 @@ TEST(Stress, HdrHotSpotAgainstMonteCarlo) {
     // binned, its light would travel along its bin's directions and cast shifted shadows
     // (ray-effect streaks). The solver sweeps it like a sun in its exact direction.
     // Stated bound, against MC over 48 voxels: band-0 RMS below 2.5%, worst voxel below 6%
-    // (measured 1.5% / 3.7%, MC noise 0.8%); binning the hot pixel instead gives 2.7% / 7.1%.
+    // (measured 1.2% / 3.3%, MC noise 0.8%); binning the hot pixel instead gives 2.7% / 5.9%.
     Medium m = makeVolume(VolumeKind::Cloud, 16, 1.0, 11);
     scaleToMaxOpticalDepth(m, 8.0);
     m.albedo = RGB(0.9f);
@@ -229,7 +229,7 @@ TEST(Stress, HdrHotSpotAgainstMonteCarlo) {
 TEST(Stress, HdrSunAgainstMonteCarlo) {
     // A sun of irradiance 1e6 over a sky of 1e-3 (ratio 1e9): the sun is swept in its
     // exact direction, so no streaks; stated bound against MC: band-0 RMS below 3%, worst
-    // voxel below 8% (measured 2.3% / 5.9%, MC noise 0.8%; the worst voxels sit at the
+    // voxel below 8% (measured 2.0% / 5.2%, MC noise 0.8%; the worst voxels sit at the
     // cloud's lit edge, where r = 2 ray maps sample single scattering coarsely).
     Medium m = makeVolume(VolumeKind::Cloud, 16, 1.0, 11);
     scaleToMaxOpticalDepth(m, 8.0);
