@@ -11,14 +11,6 @@
 using namespace lpm;
 using namespace lpm::test;
 
-namespace {
-bool said(const LpmResult& r, const char* what) {
-    for (const auto& d : r.decisions)
-        if (d.find(what) != std::string::npos) return true;
-    return false;
-}
-}  // namespace
-
 TEST(DeltaM, EnergyBalanceAndDecision) {
     Medium m = makeVolume(VolumeKind::Cloud, 16, 1.0);
     scaleToMaxOpticalDepth(m, 10.0);
@@ -32,7 +24,7 @@ TEST(DeltaM, EnergyBalanceAndDecision) {
     s.tolerance = 1e-4;
     const LpmResult r = solveLpm(m, lights, s);
     ASSERT_TRUE(r.converged);
-    EXPECT_TRUE(said(r, "delta-M forward-peak truncation")) << "auto: g = 0.95 > 0";
+    EXPECT_TRUE(saidDecision(r, "delta-M forward-peak truncation")) << "auto: g = 0.95 > 0";
     // Absorption is unchanged by the similarity transform: the balance still closes.
     EXPECT_NEAR((r.absorbed + r.escaped + r.unshot) / r.injected, 1.0, 1e-3);
     for (float v : r.sh) ASSERT_TRUE(std::isfinite(v));
@@ -50,16 +42,16 @@ TEST(DeltaM, EnergyBalanceAndDecision) {
     // a coloured albedo.
     m.g = 0.5;
     s.deltaMAbove = 0.6;
-    EXPECT_FALSE(said(solveLpm(m, lights, s), "delta-M"));
+    EXPECT_FALSE(saidDecision(solveLpm(m, lights, s), "delta-M"));
     m.g = -0.9;
     s.deltaM = 1;
-    EXPECT_FALSE(said(solveLpm(m, lights, s), "delta-M"));
+    EXPECT_FALSE(saidDecision(solveLpm(m, lights, s), "delta-M"));
     m.g = 0.95;
     s.deltaM = 0;
-    EXPECT_FALSE(said(solveLpm(m, lights, s), "delta-M"));
+    EXPECT_FALSE(saidDecision(solveLpm(m, lights, s), "delta-M"));
     s.deltaM = 1;
     m.albedo = RGB(0.9f, 0.8f, 0.7f);
-    EXPECT_TRUE(said(solveLpm(m, lights, s), "no delta-M: the albedo is not grey"));
+    EXPECT_TRUE(saidDecision(solveLpm(m, lights, s), "no delta-M: the albedo is not grey"));
     s.deltaM = 3;
     EXPECT_THROW(solveLpm(m, lights, s), Error);
 }

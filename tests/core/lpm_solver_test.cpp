@@ -272,7 +272,10 @@ TEST(LpmSolver, IsotropicPhaseDecidesShOrderZero) {
     EXPECT_FALSE(r.decisions.empty());
 }
 
-TEST(LpmSolver, BitIdenticalForAnyThreadCount) {
+class BitIdentical : public ::testing::TestWithParam<int> {};
+
+TEST_P(BitIdentical, ForAnyThreadCount) {
+    // Step (0) and linear (1) source schemes.
     Medium m = makeVolume(VolumeKind::Cloud, 16, 3.0);
     m.g = 0.5;
     m.albedo = RGB(0.9f);
@@ -280,16 +283,19 @@ TEST(LpmSolver, BitIdenticalForAnyThreadCount) {
     Lights lights;
     lights.env = &sky;
     lights.suns.push_back({normalize(Vec3{1, 1, 0}), RGB(3.0f), 0.0});
+    LpmSettings s;
+    s.linearSource = GetParam();
     std::vector<float> ref;
     for (int threads : {1, 2, 16}) {
         ThreadLimit limit(threads);
-        const LpmResult r = solveLpm(m, lights, LpmSettings{});
+        const LpmResult r = solveLpm(m, lights, s);
         if (ref.empty())
             ref = r.sh;
         else
             EXPECT_EQ(0, std::memcmp(ref.data(), r.sh.data(), ref.size() * sizeof(float))) << threads << " threads";
     }
 }
+INSTANTIATE_TEST_SUITE_P(LinearSource, BitIdentical, ::testing::Values(0, 1));
 
 TEST(LpmSolver, RejectsBadSettings) {
     Medium m = makeBox(2, 2, 2, 1.0);

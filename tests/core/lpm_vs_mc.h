@@ -100,6 +100,13 @@ inline Comparison compare(const LpmResult& r, const std::vector<McVoxelEstimate>
     return c;
 }
 
+/// Whether one of the solver's decisions contains `what`.
+inline bool saidDecision(const LpmResult& r, const char* what) {
+    for (const auto& d : r.decisions)
+        if (d.find(what) != std::string::npos) return true;
+    return false;
+}
+
 inline double secondsOf(const std::function<void()>& f) {
     const auto t0 = std::chrono::steady_clock::now();
     f();
