@@ -3,7 +3,7 @@
 // grid resolutions and albedos, for the step (voxel-constant) and linear source schemes.
 // The MC reference is computed once per scene and shared by every LPM setting.
 // Prints a markdown table (the one in docs/accuracy.md).
-//   lpm_bench_thick [--quick] [--threads N] [--samples S] [--n N] [--albedo A]
+//   lpm_bench_thick [--quick] [--threads N] [--samples S] [--n N] [--albedo A] [--plain] [--explore]
 #include <cstdio>
 #include <cstring>
 
@@ -14,12 +14,13 @@ using namespace lpm;
 using namespace lpm::test;
 
 int main(int argc, char** argv) {
-    bool quick = false, explore = false;
+    bool quick = false, explore = false, plain = false;
     int threads = 0, samples = 40000, onlyN = 0;
     double onlyAlbedo = 0;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--quick")) quick = true;
         if (!std::strcmp(argv[i], "--explore")) explore = true;
+        if (!std::strcmp(argv[i], "--plain")) plain = true;
         if (!std::strcmp(argv[i], "--threads") && i + 1 < argc) threads = std::atoi(argv[++i]);
         if (!std::strcmp(argv[i], "--samples") && i + 1 < argc) samples = std::atoi(argv[++i]);
         if (!std::strcmp(argv[i], "--n") && i + 1 < argc) onlyN = std::atoi(argv[++i]);
@@ -44,6 +45,14 @@ int main(int argc, char** argv) {
         settings.push_back({"linear source", lin});
         lin.subdivide = 2;
         settings.push_back({"linear source, subdivide 2", lin});
+        if (plain) {
+            // The un-accelerated figures: plain source iteration (no GMRES).
+            LpmSettings p;
+            p.linearSource = 1;
+            p.krylov = false;
+            p.maxOrders = 20000;
+            settings.push_back({"linear source, no GMRES", p});
+        }
         if (explore) {
             auto add = [&](const std::string& name, auto&& mod) {
                 LpmSettings x = step;
