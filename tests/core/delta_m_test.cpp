@@ -17,9 +17,7 @@ TEST(DeltaM, EnergyBalanceAndDecision) {
     m.albedo = RGB(0.9f);
     m.g = 0.95;
     const EnvMap sky = makeSky(64);
-    Lights lights;
-    lights.env = &sky;
-    lights.suns.push_back({normalize(Vec3{0.3, 1, 0.2}), RGB(5, 5, 4), 0.5});
+    const Lights lights = skyAndSun(sky);
     LpmSettings s;
     s.tolerance = 1e-4;
     const LpmResult r = solveLpm(m, lights, s);
@@ -70,9 +68,7 @@ TEST(DeltaM, WhiteFurnaceStaysExact) {
     s.tolerance = 1e-5;
     const LpmResult r = solveLpm(m, lights, s);
     ASSERT_TRUE(r.converged);
-    double worst = 0;
-    for (size_t v = 0; v < m.voxelCount(); ++v)
-        if (m.sigmaT[v] > 0) worst = std::max(worst, std::fabs(r.coeff(v, 0)[0] * kY00 / L0 - 1));
+    const double worst = worstFurnaceError(m, r, L0);
     EXPECT_LT(worst, 5e-3);
 }
 

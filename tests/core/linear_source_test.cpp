@@ -26,9 +26,7 @@ TEST(LinearSource, EnergyBalanceEnvironmentAndSun) {
     m.albedo = RGB(0.9f, 0.8f, 0.5f);
     m.g = 0.5;
     const EnvMap sky = makeSky(64);
-    Lights lights;
-    lights.env = &sky;
-    lights.suns.push_back({normalize(Vec3{0.3, 1, 0.2}), RGB(5, 5, 4), 0.5});
+    const Lights lights = skyAndSun(sky);
     LpmSettings s = linearSettings();
     s.tolerance = 1e-4;
     const LpmResult r = solveLpm(m, lights, s);
@@ -65,9 +63,7 @@ TEST_P(LinearFurnace, SEqualsL0Everywhere) {
     s.tolerance = 1e-5;
     const LpmResult r = solveLpm(m, lights, s);
     ASSERT_TRUE(r.converged) << r.residual;
-    double worst = 0;
-    for (size_t v = 0; v < m.voxelCount(); ++v)
-        if (m.sigmaT[v] > 0) worst = std::max(worst, std::fabs(r.coeff(v, 0)[0] * kY00 / L0 - 1));
+    const double worst = worstFurnaceError(m, r, L0);
     std::printf("[ furnace ] linear source, line depth %g: worst |S/L0 - 1| = %.5f, %zu passes\n", tau, worst,
                 r.passes.size());
     EXPECT_LT(worst, 5e-3);

@@ -7,7 +7,7 @@
 #include <cstdio>
 
 #include "core/lpm_solver.h"
-#include "test_scenes.h"
+#include "lpm_vs_mc.h"
 
 using namespace lpm;
 using namespace lpm::test;
@@ -26,9 +26,7 @@ TEST_P(KrylovFurnace, WithinOnePercent) {
     LpmSettings s;
     s.maxOrders = 400;
     const LpmResult r = solveLpm(m, lights, s);
-    double worst = 0;
-    for (size_t v = 0; v < m.voxelCount(); ++v)
-        if (m.sigmaT[v] > 0) worst = std::max(worst, std::fabs(r.coeff(v, 0)[0] * kY00 / L0 - 1));
+    const double worst = worstFurnaceError(m, r, L0);
     int krylovPasses = 0;
     for (const PassStats& p : r.passes) krylovPasses += p.krylov ? 1 : 0;
     std::printf("[ furnace ] tau %g: %zu passes (%d GMRES), %.2f s, worst |S/L0 - 1| = %.5f\n", tau, r.passes.size(),

@@ -9,7 +9,7 @@
 
 #include "core/parallel.h"
 #include "core/phase.h"
-#include "test_scenes.h"
+#include "lpm_vs_mc.h"
 
 using namespace lpm;
 using namespace lpm::test;
@@ -31,9 +31,7 @@ TEST(LpmSolver, EnergyBalanceEnvironmentAndSun) {
     m.albedo = RGB(0.9f, 0.8f, 0.5f);
     m.g = 0.5;
     const EnvMap sky = makeSky(64);
-    Lights lights;
-    lights.env = &sky;
-    lights.suns.push_back({normalize(Vec3{0.3, 1, 0.2}), RGB(5, 5, 4), 0.5});
+    const Lights lights = skyAndSun(sky);
     LpmSettings s;
     s.tolerance = 1e-4;
     const LpmResult r = solveLpm(m, lights, s);

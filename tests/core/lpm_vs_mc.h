@@ -1,5 +1,5 @@
-// Shared by the LPM-vs-MC test and the accuracy benchmark: the test scenes (heterogeneous
-// procedural volumes, sky + sun) and the error measures against the MC reference.
+// Shared by the solver tests and the benchmarks: the test scenes (heterogeneous procedural
+// volumes, sky + sun), the error measures against the MC reference, and small checks.
 #pragma once
 
 #include <chrono>
@@ -98,6 +98,23 @@ inline Comparison compare(const LpmResult& r, const std::vector<McVoxelEstimate>
         c.band12Noise = std::sqrt(c.band12Noise / n12);
     }
     return c;
+}
+
+/// Worst |S/L0 - 1| of band 0 (red) over voxels with sigma_t > 0: the white-furnace check.
+inline double worstFurnaceError(const Medium& m, const LpmResult& r, float L0) {
+    double worst = 0;
+    for (size_t v = 0; v < m.voxelCount(); ++v)
+        if (m.sigmaT[v] > 0) worst = std::max(worst, std::fabs(r.coeff(v, 0)[0] * kY00 / L0 - 1));
+    return worst;
+}
+
+/// The sky of `sky` plus a sun toward (0.3, 1, 0.2), irradiance (5, 5, 4), 0.5 degrees:
+/// the energy-balance tests' lighting.
+inline Lights skyAndSun(const EnvMap& sky) {
+    Lights lights;
+    lights.env = &sky;
+    lights.suns.push_back({normalize(Vec3{0.3, 1, 0.2}), RGB(5, 5, 4), 0.5});
+    return lights;
 }
 
 /// Whether one of the solver's decisions contains `what`.

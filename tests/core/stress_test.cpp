@@ -41,6 +41,14 @@ void checkInvariants(const Medium& m, const Lights& lights, const LpmResult& r, 
     }
 }
 
+// A sun of irradiance 1e6 (0.5 degrees) over the environment `dim`.
+Lights hdrSun(const EnvMap& dim) {
+    Lights l;
+    l.env = &dim;
+    l.suns.push_back({normalize(Vec3{0.3, 1, 0.2}), RGB(1e6f), 0.5});
+    return l;
+}
+
 LpmResult solveChecked(const Medium& m, const Lights& lights, const LpmSettings& s, const char* name) {
     const LpmResult r = solveLpm(m, lights, s);
     checkInvariants(m, lights, r, name);
@@ -102,10 +110,7 @@ TEST(Stress, HdrLights) {
     m.albedo = RGB(0.99f);
     m.g = 0.7;
     const EnvMap dim = EnvMap::constant(RGB(1e-3f));
-    Lights a;
-    a.env = &dim;
-    a.suns.push_back({normalize(Vec3{0.3, 1, 0.2}), RGB(1e6f), 0.5});
-    solveChecked(m, a, LpmSettings{}, "HDR sun");
+    solveChecked(m, hdrSun(dim), LpmSettings{}, "HDR sun");
     std::vector<RGB> px(64 * 32, RGB(0.01f));
     px[10 * 64 + 20] = RGB(1e5f);
     const EnvMap spot(64, 32, px);
@@ -234,9 +239,7 @@ TEST(Stress, HdrSunAgainstMonteCarlo) {
     m.albedo = RGB(0.9f);
     m.g = 0.5;
     const EnvMap dim = EnvMap::constant(RGB(1e-3f));
-    Lights lights;
-    lights.env = &dim;
-    lights.suns.push_back({normalize(Vec3{0.3, 1, 0.2}), RGB(1e6f), 0.5});
+    const Lights lights = hdrSun(dim);
     const auto mc = mcVoxelSH(m, lights, sampleVoxels(m, 48), 20000, 0);
     const LpmResult r = solveChecked(m, lights, LpmSettings{}, "HDR sun vs MC");
     const Band0Errors e = band0Errors(r, mc);
