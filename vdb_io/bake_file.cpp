@@ -11,6 +11,7 @@
 #include "core/sh.h"
 #include "vdb_io/atomic_file.h"
 #include "vdb_io/io_error.h"
+#include "vdb_io/vdb_file.h"
 #include "vdb_io/volume_reader.h"
 
 namespace lpm {
@@ -193,9 +194,8 @@ BakeFile readBakeFile(const std::string& path) {
     initOpenVdb();
     BakeFile f;
     f.path = path;
+    openvdb::io::File file = openVdbFile(path);
     try {
-        openvdb::io::File file(path);
-        file.open(false);
         f.meta = file.getMetadata();
         openvdb::GridPtrVecPtr grids = file.getGrids();
         f.grids = *grids;

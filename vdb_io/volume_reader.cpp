@@ -1,11 +1,6 @@
 // OpenVDB -> core Medium. See volume_reader.h for the conventions.
 #include "vdb_io/volume_reader.h"
 
-#include <sys/resource.h>
-#include <unistd.h>
-
-#include <filesystem>
-#include <fstream>
 
 #include <algorithm>
 #include <atomic>
@@ -25,6 +20,7 @@
 #include "core/parallel.h"
 #include "vdb_io/color.h"
 #include "vdb_io/io_error.h"
+#include "vdb_io/vdb_file.h"
 
 namespace lpm {
 
@@ -51,65 +47,6 @@ std::uint64_t scanBadValues(openvdb::FloatGrid& grid, bool fix, float& example) 
         if (fix) it.setValue(0.f);
     }
     return bad;
-}
-
-// While OpenVDB parses a file's header and grid descriptors, caps the process's address
-// space at its current size + 256 MiB + 8x the file: a corrupt length field then fails as
-// std::bad_alloc instead of making OpenVDB allocate (and zero) gigabytes (a fuzzing
-// finding: a 75 kB file drove the reader to 5.9 GB). Not under AddressSanitizer, whose
-// shadow memory needs the address space.
-#if defined(__SANITIZE_ADDRESS__)
-#define LPM_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define LPM_ASAN 1
-#endif
-#endif
-
-class AddressSpaceCap {
-public:
-    explicit AddressSpaceCap(std::uint64_t fileBytes) {
-#if !defined(LPM_ASAN)
-        std::ifstream statm("/proc/self/statm");
-        std::uint64_t pages = 0;
-        if (!(statm >> pages) || ::getrlimit(RLIMIT_AS, &old_) != 0) return;
-        const std::uint64_t cap = pages * std::uint64_t(::sysconf(_SC_PAGESIZE)) + (std::uint64_t(256) << 20) + 8 * fileBytes;
-        if (old_.rlim_cur != RLIM_INFINITY && old_.rlim_cur <= cap) return;
-        rlimit lim = old_;
-        lim.rlim_cur = cap;
-        set_ = ::setrlimit(RLIMIT_AS, &lim) == 0;
-#else
-        (void)fileBytes;
-#endif
-    }
-    ~AddressSpaceCap() {
-        if (set_) ::setrlimit(RLIMIT_AS, &old_);
-    }
-    AddressSpaceCap(const AddressSpaceCap&) = delete;
-    AddressSpaceCap& operator=(const AddressSpaceCap&) = delete;
-
-private:
-    rlimit old_{};
-    bool set_ = false;
-};
-
-openvdb::io::File openFile(const std::string& path) {
-    initOpenVdb();
-    openvdb::io::File file(path);
-    std::error_code ec;
-    const std::uint64_t bytes = std::filesystem::file_size(path, ec);
-    try {
-        AddressSpaceCap cap(ec ? 0 : bytes);
-        // No delayed loading: we read only the grids we need, and never keep the input
-        // memory-mapped while the output is written.
-        file.open(false);
-    } catch (const std::bad_alloc&) {
-        throw InputError(kComp, "cannot read '" + path + "' as an OpenVDB file: it is corrupt (a header field asks "
-                                "for far more memory than the file could hold)");
-    } catch (const std::exception& e) {
-        throw InputError(kComp, "cannot read '" + path + "' as an OpenVDB file: " + e.what());
-    }
-    return file;
 }
 
 std::string listGrids(const std::vector<std::string>& grids) {
@@ -460,7 +397,7 @@ openvdb::Vec3SGrid::Ptr temperatureToEmission(const openvdb::FloatGrid& t, const
 
 VolumeInput readVolume(const VolumeReadOptions& o) {
     VolumeInput out;
-    openvdb::io::File file = openFile(o.path);
+    openvdb::io::File file = openVdbFile(o.path);
     openvdb::GridPtrVecPtr metas;
     try {
         metas = file.readAllGridMetadata();

@@ -34,7 +34,9 @@ TEST_P(LpmVsMc, DefaultSettingsWithinPinnedError) {
     EXPECT_LT(e.band0Rms, 0.015) << "the defaults reach 1.1% or better on every case";
     EXPECT_LT(e.band0Corrected(), 0.012);
     EXPECT_LT(std::fabs(e.band0Bias), 0.006);
-    if (c.g != 0.0) EXPECT_LT(e.band12Rms, 0.05);
+    if (c.g != 0.0) {
+        EXPECT_LT(e.band12Rms, 0.05);
+    }
 }
 
 INSTANTIATE_TEST_SUITE_P(Cases, LpmVsMc, ::testing::Range(0, 6));
