@@ -5,7 +5,7 @@
 # inputs land in out/fuzz/<target>/ ; copy them to tests/fuzz/regressions/ once fixed.
 # Fork mode with -ignore_ooms: OpenVDB itself allocates whatever a corrupt length field
 # asks for while parsing headers; the release reader caps its address space around that
-# (vdb_io/volume_reader.cpp), which cannot run under ASan, so OOMs are logged, not fatal.
+# (vdb_io/vdb_file.cpp), which cannot run under ASan, so OOMs are logged, not fatal.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 secs=${1:-300}

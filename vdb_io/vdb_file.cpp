@@ -3,12 +3,14 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <vector>
 
 #include <openvdb/io/GridDescriptor.h>
-#include <openvdb/io/io.h>
 
 #include "vdb_io/io_error.h"
 #include "vdb_io/volume_reader.h"  // initOpenVdb
@@ -59,53 +61,113 @@ private:
     bool set_ = false;
 };
 
-/// Re-reads the header and grid descriptors the way OpenVDB's io::File does (file format
-/// 219 and later, seekable files; older or streamed layouts are left to OpenVDB) and
-/// checks that every grid's recorded byte range lies inside the file. A truncated file
-/// otherwise reaches OpenVDB's chunk reader, which reads a length past the end of the
-/// stream into an uninitialised variable and allocates that many bytes.
-void checkGridExtents(const std::string& path, std::uint64_t fileBytes) {
-    std::ifstream is(path, std::ios::binary);
-    auto raw = [&](void* p, std::streamsize n) {
-        is.read(static_cast<char*>(p), n);
-        if (!is) throw InputError(kComp, "cannot read '" + path + "': the file is truncated (it ends inside its header)");
-    };
-    std::int64_t magic = 0;
-    std::uint32_t version = 0, major = 0, minor = 0;
-    char hasOffsets = 0, compressed = 0, uuid[36];
-    raw(&magic, 8);
-    raw(&version, 4);
-    if (version < openvdb::OPENVDB_FILE_VERSION_NO_GRIDMAP) return;
-    raw(&major, 4);
-    raw(&minor, 4);
-    raw(&hasOffsets, 1);
-    if (version >= openvdb::OPENVDB_FILE_VERSION_SELECTIVE_COMPRESSION &&
-        version < openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION)
-        raw(&compressed, 1);
-    raw(uuid, 36);
-    if (!hasOffsets) return;
-    openvdb::io::setVersion(is, openvdb::VersionId(major, minor), version);
-    openvdb::MetaMap fileMeta;
-    fileMeta.readMeta(is);
-    std::int32_t count = 0;
-    raw(&count, 4);
-    for (std::int32_t i = 0; i < count; ++i) {
-        openvdb::io::GridDescriptor gd;
-        gd.read(is);
-        if (!is) throw InputError(kComp, "cannot read '" + path + "': the file is truncated (it ends inside its grid list)");
-        const std::string name = openvdb::io::GridDescriptor::nameAsString(gd.uniqueName());
-        const std::int64_t g = gd.getGridPos(), b = gd.getBlockPos(), e = gd.getEndPos();
-        if (g <= 0 || b < g || e < b)
-            throw InputError(kComp, "cannot read '" + path + "': it is corrupt (grid '" + name +
-                                        "' has byte offsets " + std::to_string(g) + ", " + std::to_string(b) + ", " +
-                                        std::to_string(e) + ")");
-        if (std::uint64_t(e) > fileBytes)
-            throw InputError(kComp, "cannot read '" + path + "': the file is truncated (grid '" + name +
-                                        "' ends at byte " + std::to_string(e) + " but the file has " +
-                                        std::to_string(fileBytes) + " bytes)");
-        gd.seekToEnd(is);
+/// Walks an OpenVDB file's layout the way io::File reads it (file format 219 and later,
+/// seekable files; older or streamed layouts are left to OpenVDB) without trusting any
+/// length in it: the header, the file metadata, every grid descriptor, and each grid's
+/// compression flags and metadata. Every string, metadata value and grid extent must fit
+/// inside the file. OpenVDB itself allocates whatever a length field says (a corrupt
+/// string length became a multi-gigabyte allocation) and, at the end of a truncated
+/// stream, reads chunk lengths into uninitialised variables.
+class LayoutCheck {
+public:
+    LayoutCheck(const std::string& path, std::uint64_t bytes) : path_(path), size_(bytes), is_(path, std::ios::binary) {}
+
+    void run() {
+        if (!is_) fail(std::string("it cannot be opened (") + std::strerror(errno) + ")");
+        if (size_ < 8) fail(size_ == 0 ? "the file is empty" : "it is not an OpenVDB file (" + std::to_string(size_) + " bytes)");
+        const std::int64_t magic = get<std::int64_t>("the magic number");
+        if (magic != std::int64_t(openvdb::OPENVDB_MAGIC)) fail("it is not an OpenVDB file (no VDB magic number)");
+        const auto version = get<std::uint32_t>("the format version");
+        if (version < openvdb::OPENVDB_FILE_VERSION_NO_GRIDMAP) return;
+        skip(8, "the library version");
+        const auto hasOffsets = get<char>("the header");
+        if (version >= openvdb::OPENVDB_FILE_VERSION_SELECTIVE_COMPRESSION &&
+            version < openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION)
+            skip(1, "the header");
+        skip(36, "the header");
+        if (!hasOffsets) return;
+        metaMap("the file metadata", size_);
+        const auto count = get<std::int32_t>("the grid count");
+        if (count < 0) fail("it is corrupt (grid count " + std::to_string(count) + ")");
+        struct Extent {
+            std::string name;
+            std::int64_t grid, block, end;
+        };
+        std::vector<Extent> grids;
+        for (std::int32_t i = 0; i < count; ++i) {
+            Extent e;
+            e.name = openvdb::io::GridDescriptor::nameAsString(string("a grid name", size_));
+            string("a grid type", size_);
+            if (version >= openvdb::OPENVDB_FILE_VERSION_GRID_INSTANCING) string("a grid name", size_);
+            e.grid = get<std::int64_t>("the grid list");
+            e.block = get<std::int64_t>("the grid list");
+            e.end = get<std::int64_t>("the grid list");
+            if (e.grid <= 0 || e.block < e.grid || e.end < e.block)
+                fail("it is corrupt (grid '" + e.name + "' has byte offsets " + std::to_string(e.grid) + ", " +
+                     std::to_string(e.block) + ", " + std::to_string(e.end) + ")");
+            if (std::uint64_t(e.end) > size_)
+                fail("the file is truncated (grid '" + e.name + "' ends at byte " + std::to_string(e.end) +
+                     " but the file has " + std::to_string(size_) + " bytes)");
+            is_.seekg(e.end);
+            grids.push_back(e);
+        }
+        for (const Extent& e : grids) {
+            is_.seekg(e.grid);
+            if (version >= openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION)
+                skip(4, "grid '" + e.name + "'", std::uint64_t(e.block));
+            metaMap("the metadata of grid '" + e.name + "'", std::uint64_t(e.block));
+        }
     }
-}
+
+private:
+    [[noreturn]] void fail(const std::string& why) const {
+        throw InputError(kComp, "cannot read '" + path_ + "' as an OpenVDB file: " + why);
+    }
+    std::uint64_t pos() { return std::uint64_t(std::streamoff(is_.tellg())); }
+    /// Fails unless `n` more bytes lie before `limit` (the file's end or the part's end).
+    void need(std::uint64_t n, const std::string& what, std::uint64_t limit) {
+        if (!is_) fail("the file is truncated (it ends inside " + what + ")");
+        const std::uint64_t at = pos();
+        if (at > limit || n > limit - at) {
+            if (limit == size_)
+                fail("it is corrupt or truncated (" + what + " at byte " + std::to_string(at) + " needs " +
+                     std::to_string(n) + " bytes; the file has " + std::to_string(size_) + ")");
+            fail("it is corrupt (" + what + " at byte " + std::to_string(at) + " needs " + std::to_string(n) +
+                 " bytes, past the end of its part at byte " + std::to_string(limit) + ")");
+        }
+    }
+    template <typename T>
+    T get(const std::string& what, std::uint64_t limit = ~std::uint64_t(0)) {
+        need(sizeof(T), what, std::min(limit, size_));
+        T v{};
+        is_.read(reinterpret_cast<char*>(&v), sizeof(T));
+        return v;
+    }
+    void skip(std::uint64_t n, const std::string& what, std::uint64_t limit = ~std::uint64_t(0)) {
+        need(n, what, std::min(limit, size_));
+        is_.seekg(std::streamoff(n), std::ios::cur);
+    }
+    std::string string(const std::string& what, std::uint64_t limit) {
+        const auto n = get<std::uint32_t>(what, limit);
+        need(n, what, limit);
+        std::string s(n, '\0');
+        if (n) is_.read(&s[0], n);
+        return s;
+    }
+    /// A MetaMap: a count, then (name, type name, byte count, bytes) per entry.
+    void metaMap(const std::string& what, std::uint64_t limit) {
+        const auto count = get<std::uint32_t>(what, limit);
+        for (std::uint32_t i = 0; i < count; ++i) {
+            string(what, limit);
+            string(what, limit);
+            skip(get<std::uint32_t>(what, limit), what, limit);
+        }
+    }
+
+    std::string path_;
+    std::uint64_t size_;
+    std::ifstream is_;
+};
 
 }  // namespace
 
@@ -115,11 +177,11 @@ openvdb::io::File openVdbFile(const std::string& path) {
     std::error_code ec;
     const std::uint64_t bytes = std::filesystem::file_size(path, ec);
     try {
+        if (!ec) LayoutCheck(path, bytes).run();
         AddressSpaceCap cap(ec ? 0 : bytes);
         // No delayed loading: we read only the grids we need, and never keep the input
         // memory-mapped while the output is written.
         file.open(false);
-        if (!ec) checkGridExtents(path, bytes);
     } catch (const InputError&) {
         throw;
     } catch (const std::bad_alloc&) {

@@ -76,7 +76,7 @@ TEST(RenderConsistency, RenderOfBakeMatchesMonteCarloImage) {
     ASSERT_TRUE(in);
     ASSERT_EQ(in->spec().width, 48);
     std::vector<float> img(48 * 36 * in->spec().nchannels);
-    ASSERT_TRUE(in->read_image(OIIO::TypeDesc::FLOAT, img.data()));
+    ASSERT_TRUE(in->read_image(0, 0, 0, -1, OIIO::TypeDesc::FLOAT, img.data()));
     const int nch = in->spec().nchannels;
     in->close();
 

@@ -78,7 +78,7 @@ inline void writeLatLong(const std::string& path, int w, int h, const std::funct
 
 /// Expects `f` to throw an exception of type E whose message contains every string of `parts`.
 template <typename E, typename F>
-void expectThrowWith(F f, std::initializer_list<std::string> parts) {
+void expectThrowWith(F f, const std::vector<std::string>& parts) {
     try {
         f();
         ADD_FAILURE() << "no exception";
