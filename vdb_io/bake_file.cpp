@@ -194,15 +194,9 @@ BakeFile readBakeFile(const std::string& path) {
     initOpenVdb();
     BakeFile f;
     f.path = path;
-    openvdb::io::File file = openVdbFile(path);
-    try {
-        f.meta = file.getMetadata();
-        openvdb::GridPtrVecPtr grids = file.getGrids();
-        f.grids = *grids;
-        file.close();
-    } catch (const std::exception& e) {
-        throw InputError("input", "cannot read '" + path + "' as an OpenVDB file: " + e.what());
-    }
+    VdbFile file(path);
+    f.meta = file.fileMetadata();
+    f.grids = file.readAllGrids();
     f.shOrder = metaInt(*f.meta, "lpm:sh_order", -1);
     std::string densityName = metaString(*f.meta, "lpm:density_grid", "density");
     for (int k = 0;; ++k) {

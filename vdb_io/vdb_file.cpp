@@ -3,14 +3,20 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <vector>
 
+#include <openvdb/io/Compression.h>
 #include <openvdb/io/GridDescriptor.h>
+#include <openvdb/io/io.h>
+#include <openvdb/math/Transform.h>
 
 #include "vdb_io/io_error.h"
 #include "vdb_io/volume_reader.h"  // initOpenVdb
@@ -61,93 +67,46 @@ private:
     bool set_ = false;
 };
 
-/// Walks an OpenVDB file's layout the way io::File reads it (file format 219 and later,
-/// seekable files; older or streamed layouts are left to OpenVDB) without trusting any
-/// length in it: the header, the file metadata, every grid descriptor, and each grid's
-/// compression flags and metadata. Every string, metadata value and grid extent must fit
-/// inside the file. OpenVDB itself allocates whatever a length field says (a corrupt
-/// string length became a multi-gigabyte allocation) and, at the end of a truncated
-/// stream, reads chunk lengths into uninitialised variables.
-class LayoutCheck {
+/// Reads an untrusted file: every read states what it is reading and the byte where that
+/// part of the file ends, and fails (naming the file) instead of reading past it.
+class Reader {
 public:
-    LayoutCheck(const std::string& path, std::uint64_t bytes) : path_(path), size_(bytes), is_(path, std::ios::binary) {}
+    Reader(const std::string& path, std::uint64_t size) : path_(path), size_(size), is_(path, std::ios::binary) {}
 
-    void run() {
-        if (!is_) fail(std::string("it cannot be opened (") + std::strerror(errno) + ")");
-        if (size_ < 8) fail(size_ == 0 ? "the file is empty" : "it is not an OpenVDB file (" + std::to_string(size_) + " bytes)");
-        const std::int64_t magic = get<std::int64_t>("the magic number");
-        if (magic != std::int64_t(openvdb::OPENVDB_MAGIC)) fail("it is not an OpenVDB file (no VDB magic number)");
-        const auto version = get<std::uint32_t>("the format version");
-        if (version < openvdb::OPENVDB_FILE_VERSION_NO_GRIDMAP) return;
-        skip(8, "the library version");
-        const auto hasOffsets = get<char>("the header");
-        if (version >= openvdb::OPENVDB_FILE_VERSION_SELECTIVE_COMPRESSION &&
-            version < openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION)
-            skip(1, "the header");
-        skip(36, "the header");
-        if (!hasOffsets) return;
-        metaMap("the file metadata", size_);
-        const auto count = get<std::int32_t>("the grid count");
-        if (count < 0) fail("it is corrupt (grid count " + std::to_string(count) + ")");
-        struct Extent {
-            std::string name;
-            std::int64_t grid, block, end;
-        };
-        std::vector<Extent> grids;
-        for (std::int32_t i = 0; i < count; ++i) {
-            Extent e;
-            e.name = openvdb::io::GridDescriptor::nameAsString(string("a grid name", size_));
-            string("a grid type", size_);
-            if (version >= openvdb::OPENVDB_FILE_VERSION_GRID_INSTANCING) string("a grid name", size_);
-            e.grid = get<std::int64_t>("the grid list");
-            e.block = get<std::int64_t>("the grid list");
-            e.end = get<std::int64_t>("the grid list");
-            if (e.grid <= 0 || e.block < e.grid || e.end < e.block)
-                fail("it is corrupt (grid '" + e.name + "' has byte offsets " + std::to_string(e.grid) + ", " +
-                     std::to_string(e.block) + ", " + std::to_string(e.end) + ")");
-            if (std::uint64_t(e.end) > size_)
-                fail("the file is truncated (grid '" + e.name + "' ends at byte " + std::to_string(e.end) +
-                     " but the file has " + std::to_string(size_) + " bytes)");
-            is_.seekg(e.end);
-            grids.push_back(e);
-        }
-        for (const Extent& e : grids) {
-            is_.seekg(e.grid);
-            if (version >= openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION)
-                skip(4, "grid '" + e.name + "'", std::uint64_t(e.block));
-            metaMap("the metadata of grid '" + e.name + "'", std::uint64_t(e.block));
-        }
-    }
-
-private:
     [[noreturn]] void fail(const std::string& why) const {
         throw InputError(kComp, "cannot read '" + path_ + "' as an OpenVDB file: " + why);
     }
+    bool ok() const { return bool(is_); }
+    std::istream& stream() { return is_; }
+    std::uint64_t size() const { return size_; }
     std::uint64_t pos() { return std::uint64_t(std::streamoff(is_.tellg())); }
+    void seek(std::uint64_t at) { is_.seekg(std::streamoff(at)); }
+
     /// Fails unless `n` more bytes lie before `limit` (the file's end or the part's end).
     void need(std::uint64_t n, const std::string& what, std::uint64_t limit) {
+        limit = std::min(limit, size_);
         if (!is_) fail("the file is truncated (it ends inside " + what + ")");
         const std::uint64_t at = pos();
-        if (at > limit || n > limit - at) {
-            if (limit == size_)
-                fail("it is corrupt or truncated (" + what + " at byte " + std::to_string(at) + " needs " +
-                     std::to_string(n) + " bytes; the file has " + std::to_string(size_) + ")");
-            fail("it is corrupt (" + what + " at byte " + std::to_string(at) + " needs " + std::to_string(n) +
-                 " bytes, past the end of its part at byte " + std::to_string(limit) + ")");
-        }
+        if (at <= limit && n <= limit - at) return;
+        if (limit == size_)
+            fail("it is corrupt or truncated (" + what + " at byte " + std::to_string(at) + " needs " +
+                 std::to_string(n) + " bytes; the file has " + std::to_string(size_) + ")");
+        fail("it is corrupt (" + what + " at byte " + std::to_string(at) + " needs " + std::to_string(n) +
+             " bytes, past the end of its part at byte " + std::to_string(limit) + ")");
     }
     template <typename T>
     T get(const std::string& what, std::uint64_t limit = ~std::uint64_t(0)) {
-        need(sizeof(T), what, std::min(limit, size_));
+        need(sizeof(T), what, limit);
         T v{};
         is_.read(reinterpret_cast<char*>(&v), sizeof(T));
         return v;
     }
     void skip(std::uint64_t n, const std::string& what, std::uint64_t limit = ~std::uint64_t(0)) {
-        need(n, what, std::min(limit, size_));
+        need(n, what, limit);
         is_.seekg(std::streamoff(n), std::ios::cur);
     }
-    std::string string(const std::string& what, std::uint64_t limit) {
+    /// OpenVDB's string: a 32-bit length, then the bytes.
+    std::string string(const std::string& what, std::uint64_t limit = ~std::uint64_t(0)) {
         const auto n = get<std::uint32_t>(what, limit);
         need(n, what, limit);
         std::string s(n, '\0');
@@ -163,34 +122,317 @@ private:
             skip(get<std::uint32_t>(what, limit), what, limit);
         }
     }
+    /// A node mask of `bytes` bytes; returns the number of bits on and keeps the words.
+    std::uint32_t mask(std::vector<std::uint64_t>& words, std::uint64_t bytes, const std::string& what,
+                       std::uint64_t limit) {
+        need(bytes, what, limit);
+        words.assign(bytes / 8, 0);
+        is_.read(reinterpret_cast<char*>(words.data()), std::streamsize(bytes));
+        std::uint32_t on = 0;
+        for (std::uint64_t w : words) on += std::uint32_t(__builtin_popcountll(w));
+        return on;
+    }
 
+private:
     std::string path_;
     std::uint64_t size_;
     std::ifstream is_;
 };
 
+/// Value layout of the tree types whose stored data the checker walks: the standard
+/// 5-4-3 trees of fixed-size values (the only ones lpmbake reads).
+struct ValueLayout {
+    std::uint64_t bytes = 0;      ///< sizeof(ValueType)
+    std::uint64_t halfBytes = 0;  ///< stored size per value when saved as half floats
+};
+
+bool valueLayout(const std::string& type, ValueLayout& v) {
+    static const std::map<std::string, ValueLayout> known = {
+        {"Tree_float_5_4_3", {4, 2}},  {"Tree_double_5_4_3", {8, 2}}, {"Tree_vec3s_5_4_3", {12, 6}},
+        {"Tree_vec3d_5_4_3", {24, 6}}, {"Tree_int32_5_4_3", {4, 4}},  {"Tree_int64_5_4_3", {8, 8}},
+        {"Tree_vec3i_5_4_3", {12, 12}},
+    };
+    const auto it = known.find(type);
+    if (it == known.end()) return false;
+    v = it->second;
+    return true;
+}
+
+/// Walks a 5-4-3 tree's topology and buffers exactly as OpenVDB 10 reads them
+/// (RootNode/InternalNode/LeafNode::readTopology and readBuffers, io::readCompressedValues,
+/// io::readData), checking every count against the bytes left in the grid's part of the
+/// file and every compressed chunk's length against the values it must hold. File format
+/// 222 and later (per-node mask compression, OpenVDB 3.0+).
+class TreeCheck {
+public:
+    TreeCheck(Reader& r, const std::string& grid, ValueLayout v, bool half, std::uint32_t compression)
+        : r_(r), grid_(grid), v_(v), half_(half), compression_(compression) {}
+
+    void run(std::uint64_t blockPos, std::uint64_t endPos) {
+        limit_ = blockPos;
+        r_.get<std::int32_t>(what("its buffer count"), limit_);
+        r_.skip(v_.bytes, what("its background value"), limit_);
+        const auto tiles = r_.get<std::uint32_t>(what("its tile count"), limit_);
+        const auto children = r_.get<std::uint32_t>(what("its child count"), limit_);
+        r_.skip(std::uint64_t(tiles) * (12 + v_.bytes + 1), what("its root tiles"), limit_);
+        std::map<std::array<std::int32_t, 3>, Upper> root;  // buffers are read in key order
+        for (std::uint32_t i = 0; i < children; ++i) {
+            std::array<std::int32_t, 3> c{};
+            for (auto& x : c) x = r_.get<std::int32_t>(what("a root child"), limit_);
+            root[c] = upper();
+        }
+        limit_ = endPos;
+        for (const auto& [origin, node] : root)
+            for (const Lower& lower : node.children)
+                for (std::uint16_t active : lower.leaves) {
+                    r_.skip(64, what("a leaf mask"), limit_);
+                    values(active, 512, 64);
+                }
+    }
+
+private:
+    struct Lower {
+        std::vector<std::uint16_t> leaves;  ///< active voxels of each child leaf, in mask order
+    };
+    struct Upper {
+        std::vector<Lower> children;
+    };
+
+    std::string what(const std::string& part) const { return part + " of grid '" + grid_ + "'"; }
+
+    /// InternalNode<InternalNode<Leaf, 4>, 5>::readTopology.
+    Upper upper() {
+        Upper n;
+        const std::uint32_t childCount = r_.mask(words_, 4096, what("a node mask"), limit_);
+        const std::uint32_t active = r_.mask(words_, 4096, what("a node mask"), limit_);
+        values(active, 32768, 4096);
+        n.children.reserve(childCount);
+        for (std::uint32_t i = 0; i < childCount; ++i) n.children.push_back(lower());
+        return n;
+    }
+    /// InternalNode<Leaf, 4>::readTopology, then each leaf's value mask.
+    Lower lower() {
+        Lower n;
+        const std::uint32_t childCount = r_.mask(words_, 512, what("a node mask"), limit_);
+        const std::uint32_t active = r_.mask(words_, 512, what("a node mask"), limit_);
+        values(active, 4096, 512);
+        r_.need(std::uint64_t(childCount) * 64, what("its leaf masks"), limit_);
+        n.leaves.reserve(childCount);
+        for (std::uint32_t i = 0; i < childCount; ++i)
+            n.leaves.push_back(std::uint16_t(r_.mask(words_, 64, what("a leaf mask"), limit_)));
+        return n;
+    }
+
+    /// io::readCompressedValues for a node of `count` values, `active` of them active,
+    /// whose selection mask has `maskBytes` bytes.
+    void values(std::uint32_t active, std::uint32_t count, std::uint64_t maskBytes) {
+        const std::int8_t meta = r_.get<std::int8_t>(what("a compression flag"), limit_);
+        using namespace openvdb::io;
+        if (meta == NO_MASK_AND_ONE_INACTIVE_VAL || meta == MASK_AND_ONE_INACTIVE_VAL ||
+            meta == MASK_AND_TWO_INACTIVE_VALS)
+            r_.skip(v_.bytes * (meta == MASK_AND_TWO_INACTIVE_VALS ? 2 : 1), what("an inactive value"), limit_);
+        if (meta == MASK_AND_NO_INACTIVE_VALS || meta == MASK_AND_ONE_INACTIVE_VAL || meta == MASK_AND_TWO_INACTIVE_VALS)
+            r_.skip(maskBytes, what("a selection mask"), limit_);
+        std::uint64_t n = count;
+        if ((compression_ & COMPRESS_ACTIVE_MASK) && meta != NO_MASK_AND_ALL_VALS) n = active;
+        if (half_ && v_.halfBytes != v_.bytes) {
+            if (n < 1) return;  // HalfReader reads nothing for no values
+            chunk(n * v_.halfBytes);
+        } else {
+            chunk(n * v_.bytes);
+        }
+    }
+
+    /// io::readData: a Blosc or zlib chunk (64-bit length; negative for stored bytes), or
+    /// the raw bytes.
+    void chunk(std::uint64_t bytes) {
+        using namespace openvdb::io;
+        if (!(compression_ & (COMPRESS_BLOSC | COMPRESS_ZIP))) {
+            r_.skip(bytes, what("its values"), limit_);
+            return;
+        }
+        const auto n = r_.get<std::int64_t>(what("a chunk length"), limit_);
+        if (n <= 0) {
+            if (std::uint64_t(-n) != bytes)
+                r_.fail("it is corrupt (grid '" + grid_ + "' stores " + std::to_string(-n) + " bytes where " +
+                        std::to_string(bytes) + " are expected, at byte " + std::to_string(r_.pos() - 8) + ")");
+            r_.skip(bytes, what("its values"), limit_);
+            return;
+        }
+        const std::uint64_t at = r_.pos();
+        r_.need(std::uint64_t(n), what("a compressed chunk"), limit_);
+        if (compression_ & COMPRESS_BLOSC) {
+            // Blosc trusts the compressed size in its own header: it must be the chunk's.
+            if (n < 16) r_.fail("it is corrupt (grid '" + grid_ + "' has a " + std::to_string(n) +
+                                "-byte Blosc chunk at byte " + std::to_string(at) + ")");
+            std::uint32_t header[4];
+            r_.stream().read(reinterpret_cast<char*>(header), 16);
+            if (header[3] != std::uint64_t(n))
+                r_.fail("it is corrupt (a Blosc chunk of grid '" + grid_ + "' at byte " + std::to_string(at) +
+                        " says it holds " + std::to_string(header[3]) + " bytes, its length field " +
+                        std::to_string(n) + ")");
+            r_.seek(at);
+        }
+        r_.skip(std::uint64_t(n), what("a compressed chunk"), limit_);
+    }
+
+    Reader& r_;
+    std::string grid_;
+    ValueLayout v_;
+    bool half_;
+    std::uint32_t compression_;
+    std::uint64_t limit_ = 0;
+    std::vector<std::uint64_t> words_;
+};
+
 }  // namespace
 
-openvdb::io::File openVdbFile(const std::string& path) {
+VdbFile::VdbFile(const std::string& path) : path_(path), file_(path) {
     initOpenVdb();
-    openvdb::io::File file(path);
     std::error_code ec;
-    const std::uint64_t bytes = std::filesystem::file_size(path, ec);
+    size_ = std::filesystem::file_size(path, ec);
+    if (!ec) {
+        Reader r(path, size_);
+        if (!r.ok()) r.fail(std::string("it cannot be opened (") + std::strerror(errno) + ")");
+        if (size_ < 8) r.fail(size_ == 0 ? "the file is empty" : "it is not an OpenVDB file (" + std::to_string(size_) + " bytes)");
+        if (r.get<std::int64_t>("the magic number") != std::int64_t(openvdb::OPENVDB_MAGIC))
+            r.fail("it is not an OpenVDB file (no VDB magic number)");
+        version_ = r.get<std::uint32_t>("the format version");
+        if (version_ >= openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) {
+            libMajor_ = r.get<std::uint32_t>("the library version");
+            libMinor_ = r.get<std::uint32_t>("the library version");
+            const auto hasOffsets = r.get<char>("the header");
+            r.skip(36, "the header");
+            if (hasOffsets) {
+                checked_ = true;
+                r.metaMap("the file metadata", size_);
+                const auto count = r.get<std::int32_t>("the grid count");
+                if (count < 0) r.fail("it is corrupt (grid count " + std::to_string(count) + ")");
+                for (std::int32_t i = 0; i < count; ++i) {
+                    GridExtent g;
+                    g.uniqueName = r.string("a grid name");
+                    const std::string name = openvdb::io::GridDescriptor::nameAsString(g.uniqueName);
+                    g.type = r.string("the type of grid '" + name + "'");
+                    const std::string halfSuffix = "_HalfFloat";
+                    if (g.type.size() > halfSuffix.size() &&
+                        g.type.compare(g.type.size() - halfSuffix.size(), halfSuffix.size(), halfSuffix) == 0) {
+                        g.half = true;
+                        g.type.resize(g.type.size() - halfSuffix.size());
+                    }
+                    g.instance = !r.string("the instance parent of grid '" + name + "'").empty();
+                    g.gridPos = r.get<std::int64_t>("the grid list");
+                    g.blockPos = r.get<std::int64_t>("the grid list");
+                    g.endPos = r.get<std::int64_t>("the grid list");
+                    if (g.gridPos <= 0 || g.blockPos < g.gridPos || g.endPos < g.blockPos)
+                        r.fail("it is corrupt (grid '" + name + "' has byte offsets " + std::to_string(g.gridPos) +
+                               ", " + std::to_string(g.blockPos) + ", " + std::to_string(g.endPos) + ")");
+                    if (std::uint64_t(g.endPos) > size_)
+                        r.fail("the file is truncated (grid '" + name + "' ends at byte " + std::to_string(g.endPos) +
+                               " but the file has " + std::to_string(size_) + " bytes)");
+                    r.seek(std::uint64_t(g.endPos));
+                    grids_.push_back(g);
+                }
+            }
+        }
+    }
     try {
-        if (!ec) LayoutCheck(path, bytes).run();
-        AddressSpaceCap cap(ec ? 0 : bytes);
+        AddressSpaceCap cap(ec ? 0 : size_);
         // No delayed loading: we read only the grids we need, and never keep the input
         // memory-mapped while the output is written.
-        file.open(false);
-    } catch (const InputError&) {
-        throw;
+        file_.open(false);
     } catch (const std::bad_alloc&) {
         throw InputError(kComp, "cannot read '" + path + "' as an OpenVDB file: it is corrupt (a header field asks "
                                 "for far more memory than the file could hold)");
     } catch (const std::exception& e) {
         throw InputError(kComp, "cannot read '" + path + "' as an OpenVDB file: " + e.what());
     }
-    return file;
+}
+
+VdbFile::~VdbFile() {
+    try {
+        if (file_.isOpen()) file_.close();
+    } catch (...) {
+    }
+}
+
+openvdb::MetaMap::Ptr VdbFile::fileMetadata() {
+    try {
+        return file_.getMetadata();
+    } catch (const std::exception& e) {
+        throw InputError(kComp, "cannot read the metadata of '" + path_ + "': " + e.what());
+    }
+}
+
+openvdb::GridPtrVecPtr VdbFile::gridMetadata() {
+    if (checked_)
+        for (const GridExtent& g : grids_) {
+            Reader r(path_, size_);
+            r.seek(std::uint64_t(g.gridPos));
+            const std::string name = openvdb::io::GridDescriptor::nameAsString(g.uniqueName);
+            r.skip(4, "the compression flags of grid '" + name + "'", std::uint64_t(g.blockPos));
+            r.metaMap("the metadata of grid '" + name + "'", std::uint64_t(g.blockPos));
+            const std::uint64_t at = r.pos();
+            r.string("the transform of grid '" + name + "'", std::uint64_t(g.blockPos));
+            r.seek(at);
+        }
+    try {
+        return file_.readAllGridMetadata();
+    } catch (const std::exception& e) {
+        throw InputError(kComp, "cannot read the grid list of '" + path_ + "': " + e.what());
+    }
+}
+
+void VdbFile::checkGridData(const GridExtent& g) {
+    if (!checked_) return;
+    const std::string name = openvdb::io::GridDescriptor::nameAsString(g.uniqueName);
+    Reader r(path_, size_);
+    const std::uint64_t blockPos = std::uint64_t(g.blockPos), endPos = std::uint64_t(g.endPos);
+    r.seek(std::uint64_t(g.gridPos));
+    const auto compression = r.get<std::uint32_t>("the compression flags of grid '" + name + "'", blockPos);
+    r.metaMap("the metadata of grid '" + name + "'", blockPos);
+    // The transform: a map type name, then that map's fixed-size fields.
+    const std::uint64_t at = r.pos();
+    r.string("the transform of grid '" + name + "'", blockPos);
+    r.seek(at);
+    openvdb::io::setVersion(r.stream(), openvdb::VersionId(libMajor_, libMinor_), version_);
+    try {
+        openvdb::math::Transform xform;
+        xform.read(r.stream());
+    } catch (const std::exception& e) {
+        r.fail("it is corrupt (the transform of grid '" + name + "': " + e.what() + ")");
+    }
+    r.need(0, "the transform of grid '" + name + "'", blockPos);
+    if (g.instance) return;
+    ValueLayout v;
+    if (!valueLayout(g.type, v))
+        r.fail("grid '" + name + "' has tree type '" + g.type + "', which lpmbake does not read");
+    TreeCheck(r, name, v, g.half, compression).run(blockPos, endPos);
+}
+
+openvdb::GridBase::Ptr VdbFile::readGrid(const std::string& name) {
+    // io::File's lookup: the exact unique name, else the first grid with that base name.
+    const std::string unique = openvdb::io::GridDescriptor::stringAsUniqueName(name);
+    const GridExtent* found = nullptr;
+    for (const GridExtent& g : grids_)
+        if (g.uniqueName == unique) found = found ? found : &g;
+    if (!found)
+        for (const GridExtent& g : grids_)
+            if (openvdb::io::GridDescriptor::stripSuffix(g.uniqueName) == name) found = found ? found : &g;
+    if (found) checkGridData(*found);
+    try {
+        return file_.readGrid(name);
+    } catch (const std::exception& e) {
+        throw InputError(kComp, "cannot read grid '" + name + "' from '" + path_ + "': " + e.what());
+    }
+}
+
+openvdb::GridPtrVec VdbFile::readAllGrids() {
+    for (const GridExtent& g : grids_) checkGridData(g);
+    try {
+        return *file_.getGrids();
+    } catch (const std::exception& e) {
+        throw InputError(kComp, "cannot read the grids of '" + path_ + "': " + e.what());
+    }
 }
 
 }  // namespace lpm

@@ -57,7 +57,7 @@ std::string listGrids(const std::vector<std::string>& grids) {
 }
 
 /// Reads the `index`-th grid called `name` (OpenVDB addresses duplicates as "name[N]").
-openvdb::GridBase::Ptr readNamed(openvdb::io::File& file, const std::string& path, const std::string& name,
+openvdb::GridBase::Ptr readNamed(VdbFile& file, const std::string& path, const std::string& name,
                                  int index, const openvdb::GridPtrVec& metas, const std::vector<std::string>& list,
                                  std::vector<std::string>& warnings, const char* what) {
     int count = 0;
@@ -75,11 +75,7 @@ openvdb::GridBase::Ptr readNamed(openvdb::io::File& file, const std::string& pat
     if (index >= count)
         throw InputError(kComp, "--grid-index " + std::to_string(index) + " is out of range: '" + path + "' has " +
                                     std::to_string(count) + " grid(s) named '" + name + "'");
-    try {
-        return file.readGrid(index == 0 ? name : name + "[" + std::to_string(index) + "]");
-    } catch (const std::exception& e) {
-        throw InputError(kComp, "cannot read grid '" + name + "' from '" + path + "': " + e.what());
-    }
+    return file.readGrid(index == 0 ? name : name + "[" + std::to_string(index) + "]");
 }
 
 /// Fills out.medium.emission (the block's dimensions are set): each dense voxel gets the
@@ -397,13 +393,8 @@ openvdb::Vec3SGrid::Ptr temperatureToEmission(const openvdb::FloatGrid& t, const
 
 VolumeInput readVolume(const VolumeReadOptions& o) {
     VolumeInput out;
-    openvdb::io::File file = openVdbFile(o.path);
-    openvdb::GridPtrVecPtr metas;
-    try {
-        metas = file.readAllGridMetadata();
-    } catch (const std::exception& e) {
-        throw InputError(kComp, "cannot read the grid list of '" + o.path + "': " + e.what());
-    }
+    VdbFile file(o.path);
+    openvdb::GridPtrVecPtr metas = file.gridMetadata();
     for (const auto& m : *metas) out.gridsInFile.push_back(describeGrid(*m));
 
     openvdb::GridBase::Ptr base =
@@ -443,7 +434,6 @@ VolumeInput readVolume(const VolumeReadOptions& o) {
                                         tb->valueType() + " values; expected float (Kelvin)");
         out.emission = temperatureToEmission(*t, o);
     }
-    file.close();
     gridToMedium(*grid, o, out);  // sets out.density to the (possibly sanitised) copy
     return out;
 }
