@@ -14,6 +14,7 @@
 #include <vector>
 
 #include <openvdb/io/Compression.h>
+#include <openvdb/io/DelayedLoadMetadata.h>
 #include <openvdb/io/GridDescriptor.h>
 #include <openvdb/io/io.h>
 #include <openvdb/math/Transform.h>
@@ -113,14 +114,56 @@ public:
         if (n) is_.read(&s[0], n);
         return s;
     }
-    /// A MetaMap: a count, then (name, type name, byte count, bytes) per entry.
+    /// A MetaMap: a count, then (name, type name, byte count, value) per entry, read the
+    /// way MetaMap::readMeta reads it: registered fixed-size types read their own size
+    /// (whatever the byte count says, so it must agree), strings and unknown types read
+    /// the byte count, and OpenVDB's delayed-load table has a layout of its own.
     void metaMap(const std::string& what, std::uint64_t limit) {
         const auto count = get<std::uint32_t>(what, limit);
         for (std::uint32_t i = 0; i < count; ++i) {
-            string(what, limit);
-            string(what, limit);
-            skip(get<std::uint32_t>(what, limit), what, limit);
+            const std::string name = string(what, limit);
+            const std::string type = string(what, limit);
+            const auto bytes = get<std::uint32_t>(what, limit);
+            const std::string entry = "metadata '" + name + "' (" + type + ") in " + what;
+            if (type == openvdb::io::DelayedLoadMetadata::staticTypeName()) {
+                delayedLoadTable(bytes, entry, limit);
+            } else if (type != "string" && openvdb::Metadata::isRegisteredType(type)) {
+                const std::uint32_t fixed = openvdb::Metadata::createMetadata(type)->size();
+                if (bytes != fixed)
+                    fail("it is corrupt (" + entry + " says " + std::to_string(bytes) + " bytes; the type has " +
+                         std::to_string(fixed) + ")");
+                skip(fixed, entry, limit);
+            } else {
+                skip(bytes, entry, limit);
+            }
         }
+    }
+    /// io::DelayedLoadMetadata::readValue: a leaf count, then a mask byte and a 64-bit
+    /// compressed size per leaf, each array stored raw or as one Blosc buffer. The counts
+    /// size allocations, so they are bounded by the file (a leaf takes at least a byte).
+    void delayedLoadTable(std::uint32_t bytes, const std::string& what, std::uint64_t limit) {
+        if (bytes == 0) return;
+        const std::uint64_t start = pos();
+        const auto count = get<std::uint32_t>(what, limit);
+        if (count > size_) fail("it is corrupt (" + what + " lists " + std::to_string(count) + " leaves)");
+        auto array = [&](std::uint32_t stored, std::uint64_t rawBytes) {
+            if (stored == 0) {
+                skip(rawBytes, what, limit);
+                return;
+            }
+            need(stored, what, limit);
+            const std::uint64_t at = pos();
+            std::uint32_t header[4] = {0, 0, 0, 0};
+            if (stored >= 16) is_.read(reinterpret_cast<char*>(header), 16);
+            if (stored < 16 || header[3] != stored || header[1] > rawBytes + 1024)
+                fail("it is corrupt (a Blosc buffer of " + what + " at byte " + std::to_string(at) + ")");
+            seek(at + stored);
+        };
+        array(get<std::uint32_t>(what, limit), count);
+        const auto sizes = get<std::uint32_t>(what, limit);
+        if (sizes != 0xFFFFFFFFu) array(sizes, std::uint64_t(count) * 8);
+        const std::uint64_t used = pos() - start;
+        if (used < bytes) skip(bytes - used, what, limit);
     }
     /// A node mask of `bytes` bytes; returns the number of bits on and keeps the words.
     std::uint32_t mask(std::vector<std::uint64_t>& words, std::uint64_t bytes, const std::string& what,
@@ -298,12 +341,20 @@ VdbFile::VdbFile(const std::string& path) : path_(path), file_(path) {
         if (r.get<std::int64_t>("the magic number") != std::int64_t(openvdb::OPENVDB_MAGIC))
             r.fail("it is not an OpenVDB file (no VDB magic number)");
         version_ = r.get<std::uint32_t>("the format version");
-        if (version_ >= openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) {
+        // Files older than OpenVDB 3.0 (2014) and streamed files (no grid offsets; io::File
+        // would parse every grid while opening) use layouts the checker does not walk.
+        if (version_ < openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION)
+            r.fail("it uses VDB file format " + std::to_string(version_) +
+                   " (OpenVDB before 3.0), which lpmbake does not read; re-save it with a current OpenVDB");
+        {
             libMajor_ = r.get<std::uint32_t>("the library version");
             libMinor_ = r.get<std::uint32_t>("the library version");
             const auto hasOffsets = r.get<char>("the header");
             r.skip(36, "the header");
-            if (hasOffsets) {
+            if (!hasOffsets)
+                r.fail("it is a streamed VDB (written without grid offsets), which lpmbake does not read; "
+                       "re-save it as a regular .vdb file");
+            {
                 checked_ = true;
                 r.metaMap("the file metadata", size_);
                 const auto count = r.get<std::int32_t>("the grid count");

@@ -152,6 +152,14 @@ TEST(VdbFile, LayoutCheckNamesEachCorruptField) {
         // metadata count) runs past the grid's metadata part.
         {"grid_meta", patched(good, size_t(gridPos) + 8, 0x00FFFFFFu, 4),
          {"corrupt", "the metadata of grid 'voxel_fog_density'", "past the end of its part"}},
+        // The grid's first metadata entry is '_bifrost_volume_index' (int32): its byte count
+        // must be 4, since OpenVDB reads 4 bytes whatever it says.
+        {"typed_meta", patched(good, size_t(gridPos) + 4 + 4 + 4 + 21 + 4 + 5, 1000, 4),
+         {"corrupt", "'_bifrost_volume_index' (int32)", "says 1000 bytes; the type has 4"}},
+        // Layouts the walk does not know are refused by name: a streamed file (no grid
+        // offsets: byte 20) and a pre-3.0 format version (bytes 8-11).
+        {"streamed", patched(good, 20, 0, 1), {"streamed VDB"}},
+        {"old_format", patched(good, 8, 220, 4), {"file format 220", "re-save"}},
     };
     expectEachRefused(dir, cases, [](const std::string& path) {
         VdbFile file(path);
