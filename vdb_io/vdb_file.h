@@ -3,8 +3,8 @@
 // makes it read past the end of a heap buffer (a fuzzing finding in OpenVDB 10's Blosc
 // reader), and past the end of a truncated file it reads chunk lengths into
 // uninitialised variables. VdbFile walks the layout first, without trusting anything,
-// and hands a grid to OpenVDB only when every field it will read fits. See
-// docs/conventions.md, "Reading untrusted VDB files".
+// and hands a grid to OpenVDB only when every field it will read fits. Design note:
+// docs/vdb_input.md.
 #pragma once
 
 #include <cstdint>
