@@ -8,6 +8,7 @@ bash scripts/build.sh >/dev/null
 mkdir -p out/bench
 quick=""; max=64
 if [ "${1:-}" = "--quick" ]; then quick="--quick"; max=32; fi
+echo "== VDB read: layout walk overhead"; ./build/scripts/bench/lpm_bench_vdb_read --n "$((max * 4))" | tee out/bench/vdb_read.md
 echo "== solver speed"; ./build/scripts/bench/lpm_bench_speed "$max" | tee out/bench/speed.md
 echo "== accuracy vs time"; ./build/scripts/bench/lpm_bench_accuracy $quick | tee out/bench/accuracy.md
 echo "== optically thick media"; ./build/scripts/bench/lpm_bench_thick $quick | tee out/bench/thick_media.md
