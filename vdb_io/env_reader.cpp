@@ -2,6 +2,7 @@
 #include "vdb_io/env_reader.h"
 
 #include <cmath>
+#include <cstdint>
 
 #include <OpenImageIO/imageio.h>
 
@@ -14,6 +15,11 @@ namespace {
 const char* kComp = "env";
 }
 
+// 32768 x 16384: the largest lat-long lpmbake reads (2^29 pixels, 6 GiB as float RGB,
+// held twice while converting). A corrupt header can claim any size; refusing here keeps
+// that from becoming a many-gigabyte allocation (or the OOM killer) before a pixel is read.
+const std::int64_t kMaxEnvPixels = std::int64_t(1) << 29;
+
 std::vector<float> readRgbImage(const std::string& path, int& width, int& height, int& channels,
                                 std::string& fileColorSpace, std::vector<std::string>& warnings) {
     auto in = OIIO::ImageInput::open(path);
@@ -25,6 +31,10 @@ std::vector<float> readRgbImage(const std::string& path, int& width, int& height
     if (width <= 0 || height <= 0 || channels <= 0)
         throw InputError(kComp, "image '" + path + "' is empty (" + std::to_string(width) + "x" +
                                     std::to_string(height) + ", " + std::to_string(channels) + " channels)");
+    if (std::int64_t(width) * height > kMaxEnvPixels)
+        throw InputError(kComp, "image '" + path + "' is " + std::to_string(width) + "x" + std::to_string(height) +
+                                    ", more than lpmbake's limit of " + std::to_string(kMaxEnvPixels) +
+                                    " pixels (32768x16384); downsample it");
     fileColorSpace = spec.get_string_attribute("oiio:ColorSpace");
     if (spec.find_attribute("chromaticities"))
         warnings.push_back("'" + path + "' has a chromaticities attribute, which lpmbake does not read; say which "

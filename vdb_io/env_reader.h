@@ -2,6 +2,7 @@
 // the working colour space. Orientation: OpenEXR ImfEnvmap, +Y up (see core/envmap.h).
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -31,6 +32,9 @@ struct EnvInput {
 
 /// Throws InputError naming the file and the problem (size, channels, NaN count, colour space).
 EnvInput readEnvironment(const EnvReadOptions& options);
+
+/// The most pixels an environment image may have (32768 x 16384); larger ones are refused.
+extern const std::int64_t kMaxEnvPixels;
 
 /// Reads an image as packed RGB floats (first 3 channels, grey replicated), top row first,
 /// at full resolution. Throws InputError. Exposed for tests and the renderer.

@@ -1,6 +1,11 @@
 // vdb_io/env_reader: lat-long orientation, channels, NaN policy, size checks, colour.
 #include "vdb_io/env_reader.h"
 
+#include <sys/resource.h>
+
+#include <cstdint>
+#include <iostream>
+
 #include <gtest/gtest.h>
 
 #include "test_helpers.h"
@@ -153,4 +158,133 @@ TEST(EnvReader, HdrFileAndErrors) {
     o.path = dataPath("env/rooftop_small.hdr");
     o.colorSpace = "bogus_space";
     expectThrowWith<InputError>([&] { readEnvironment(o); }, {"bogus_space"});
+}
+
+namespace {
+
+/// Reads `path` as an environment; returns "" on success (with the pixels in `px`) or the
+/// error message. Any exception other than InputError is a failure of the test.
+std::string tryRead(const std::string& path, std::vector<RGB>& px) {
+    try {
+        const EnvInput e = readEnvironment(identity(path));
+        px.assign(size_t(e.width) * e.height, RGB(0.f));
+        for (int y = 0; y < e.height; ++y)
+            for (int x = 0; x < e.width; ++x) px[size_t(y) * e.width + x] = e.env->pixel(x, y);
+        return "";
+    } catch (const InputError& e) {
+        return e.what();
+    }
+}
+
+bool samePixels(const std::vector<RGB>& a, const std::vector<RGB>& b) {
+    if (a.size() != b.size()) return false;
+    for (size_t i = 0; i < a.size(); ++i)
+        for (int c = 0; c < 3; ++c)
+            if (a[i][c] != b[i][c]) return false;
+    return true;
+}
+
+void expectNamedOneLine(const std::string& what, const std::string& path) {
+    EXPECT_NE(what.find(path), std::string::npos) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+}
+
+}  // namespace
+
+// Truncated, byte-flipped, empty and foreign files: each is refused with one line naming
+// the file, or (where the damage misses every pixel lpmbake reads) gives exactly the
+// intact file's pixels; never a crash, never NaN. Cut points run from inside the header
+// to one byte short. Files: the bundled RLE .hdr, a scanline zip EXR written here, and
+// the bundled tiled, MIP-mapped EXR (lpmbake reads level 0 only, so a cut that keeps
+// level 0 whole is read correctly: that case must match the intact pixels).
+TEST(EnvReader, TruncatedFlippedAndForeignFiles) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string scan = dir + "/scanline.exr";
+    lpmtest::writeLatLong(scan, 64, 32, [](const Vec3& d) { return code(d); });
+    struct Source {
+        std::string path, ext;
+        bool singleLevel;  // every byte after the header belongs to the pixels read
+    };
+    const std::vector<Source> sources = {{dataPath("env/rooftop_small.hdr"), ".hdr", true},
+                                         {scan, ".exr", true},
+                                         {dataPath("env/OrientationLatLong.exr"), ".exr", false}};
+    for (const Source& s : sources) {
+        SCOPED_TRACE(s.path);
+        const std::string bytes = lpmtest::readBytes(s.path);
+        ASSERT_GT(bytes.size(), 2000u);
+        std::vector<RGB> intact;
+        ASSERT_EQ(tryRead(s.path, intact), "");
+
+        int refusedCuts = 0;
+        for (size_t cut : {size_t(0), size_t(1), size_t(10), size_t(100), bytes.size() / 4, bytes.size() / 2,
+                           bytes.size() * 9 / 10, bytes.size() - 100, bytes.size() - 1}) {
+            SCOPED_TRACE("cut at byte " + std::to_string(cut));
+            const std::string path = dir + "/cut" + std::to_string(cut) + s.ext;
+            lpmtest::writeBytes(path, bytes.substr(0, cut));
+            std::vector<RGB> px;
+            const std::string what = tryRead(path, px);
+            if (what.empty()) {
+                EXPECT_FALSE(s.singleLevel) << "a truncated single-level image was read";
+                EXPECT_TRUE(samePixels(px, intact)) << "a truncated file was read with different pixels";
+            } else {
+                expectNamedOneLine(what, path);
+                ++refusedCuts;
+            }
+        }
+        EXPECT_GE(refusedCuts, 6);
+
+        // Byte flips at 40 fixed pseudo-random offsets (header and pixels): refused, or
+        // read with finite, non-negative pixels. Formats without checksums (RLE .hdr,
+        // zip EXR past its zlib stream checks) can decode a flipped pixel byte as another
+        // valid value; that cannot be detected and is not counted as a failure.
+        std::uint64_t state = 0x9E3779B97F4A7C15ull;
+        int refusedFlips = 0, sameFlips = 0;
+        for (int i = 0; i < 40; ++i) {
+            state = state * 6364136223846793005ull + 1442695040888963407ull;
+            const size_t pos = i < 8 ? size_t(i) * 7 : size_t((state >> 33) % bytes.size());
+            SCOPED_TRACE("flip at byte " + std::to_string(pos));
+            std::string flipped = bytes;
+            flipped[pos] = char(~flipped[pos]);
+            const std::string path = dir + "/flip" + std::to_string(pos) + s.ext;
+            lpmtest::writeBytes(path, flipped);
+            std::vector<RGB> px;
+            const std::string what = tryRead(path, px);
+            if (!what.empty()) {
+                expectNamedOneLine(what, path);
+                ++refusedFlips;
+                continue;
+            }
+            sameFlips += samePixels(px, intact);
+            for (const RGB& p : px)
+                for (int c = 0; c < 3; ++c) ASSERT_TRUE(std::isfinite(p[c]) && p[c] >= 0.f);
+        }
+        EXPECT_GE(refusedFlips, 4) << "the magic number and format flips at least are refused";
+        std::cout << s.path << ": " << refusedCuts << "/9 cuts refused, " << refusedFlips << "/40 flips refused, "
+                  << sameFlips << " read unchanged\n";
+    }
+
+    // Not an image at all, under both extensions.
+    for (const std::string ext : {".exr", ".hdr"}) {
+        const std::string path = dir + "/text" + ext;
+        lpmtest::writeBytes(path, "this is a note, not an image\n");
+        std::vector<RGB> px;
+        expectNamedOneLine(tryRead(path, px), path);
+    }
+}
+
+// A header claiming an enormous image (a corrupt or hostile file) is refused from its
+// header, before the pixel buffer is allocated: 80000 x 40000 RGB floats would be 38 GB.
+TEST(EnvReader, HugeDimensionsRefusedBeforeAllocating) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string path = dir + "/huge.hdr";
+    lpmtest::writeBytes(path, "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 40000 +X 80000\n" + std::string(64, '\x01'));
+    rusage before{};
+    ::getrusage(RUSAGE_SELF, &before);
+    expectThrowWith<InputError>([&] { readEnvironment(identity(path)); },
+                                {path, "80000x40000", "limit", "32768x16384", "downsample"});
+    rusage after{};
+    ::getrusage(RUSAGE_SELF, &after);
+    EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 256L * 1024L);  // KiB
+    // The largest accepted size is stated exactly.
+    EXPECT_EQ(kMaxEnvPixels, std::int64_t(32768) * 16384);
 }

@@ -32,6 +32,16 @@ inline std::string scratchDir() {
     return p.string();
 }
 
+/// The whole file as bytes (empty if it cannot be read).
+inline std::string readBytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+inline void writeBytes(const std::string& path, const std::string& bytes) {
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+}
+
 inline void writeVdb(const std::string& path, openvdb::GridPtrVec grids) {
     lpm::initOpenVdb();
     openvdb::io::File f(path);

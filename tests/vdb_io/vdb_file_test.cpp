@@ -15,11 +15,6 @@ using namespace lpm;
 
 namespace {
 
-std::string readAll(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
 /// A float grid whose leaves exercise every mask-compression case: active values,
 /// inactive background, inactive -background and inactive non-background values.
 openvdb::FloatGrid::Ptr mixedFloatGrid() {
@@ -66,7 +61,7 @@ void expectEachRefused(const std::string& dir, const std::vector<Corruption>& ca
     for (const Corruption& c : cases) {
         SCOPED_TRACE(c.name);
         const std::string path = dir + "/" + c.name + ".vdb";
-        std::ofstream(path, std::ios::binary) << c.bytes;
+        lpmtest::writeBytes(path, c.bytes);
         std::vector<std::string> expect = c.expect;
         expect.push_back(path);
         lpmtest::expectThrowWith<InputError>([&] { read(path); }, expect);
@@ -129,7 +124,7 @@ TEST(VdbFile, EveryCompressionHalfAndValueTypeReadsBack) {
 // allocating what the field asks for.
 TEST(VdbFile, LayoutCheckNamesEachCorruptField) {
     const std::string dir = lpmtest::scratchDir();
-    const std::string good = readAll(lpmtest::dataPath("vdb/torus01.vdb"));
+    const std::string good = lpmtest::readBytes(lpmtest::dataPath("vdb/torus01.vdb"));
     // The grid descriptor: name, type "Tree_float_5_4_3", empty instance parent, then the
     // grid, block and end byte offsets.
     const size_t type = good.find("Tree_float_5_4_3");
@@ -185,7 +180,7 @@ TEST(VdbFile, CorruptChunkLengthsAreRefusedBeforeOpenVdbReadsThem) {
     out.setCompression(openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
     out.write(openvdb::GridPtrVec{g});
     out.close();
-    const std::string good = readAll(goodPath);
+    const std::string good = lpmtest::readBytes(goodPath);
     const size_t type = good.find("Tree_float_5_4_3");
     ASSERT_NE(type, std::string::npos);
     std::int64_t blockPos = 0;

@@ -237,9 +237,8 @@ TEST(VolumeReader, UnreadableFiles) {
     const std::string dir = lpmtest::scratchDir();
     expectThrowWith<InputError>([&] { readVolume(opts(dir + "/missing.vdb")); }, {"missing.vdb"});
     // A truncated copy of a real file.
-    std::ifstream in(dataPath("vdb/torus01.vdb"), std::ios::binary);
-    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    std::ofstream(dir + "/cut.vdb", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+    const std::string bytes = lpmtest::readBytes(dataPath("vdb/torus01.vdb"));
+    lpmtest::writeBytes(dir + "/cut.vdb", bytes.substr(0, bytes.size() / 2));
     expectThrowWith<InputError>([&] { readVolume(opts(dir + "/cut.vdb", "voxel_fog_density")); },
                                 {"cut.vdb", "truncated", "ends at byte " + std::to_string(bytes.size())});
 }
@@ -250,13 +249,12 @@ TEST(VolumeReader, UnreadableFiles) {
 // from inside the header to one byte short, gives the same clean error.
 TEST(VolumeReader, TruncatedAnywhereIsNamedAsTruncated) {
     const std::string dir = lpmtest::scratchDir();
-    std::ifstream in(dataPath("vdb/torus01.vdb"), std::ios::binary);
-    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string bytes = lpmtest::readBytes(dataPath("vdb/torus01.vdb"));
     ASSERT_GT(bytes.size(), 1000u);
     for (size_t cut : {size_t(10), size_t(40), size_t(300), bytes.size() / 4, bytes.size() - 100, bytes.size() - 1}) {
         SCOPED_TRACE("cut at byte " + std::to_string(cut));
         const std::string path = dir + "/cut" + std::to_string(cut) + ".vdb";
-        std::ofstream(path, std::ios::binary) << bytes.substr(0, cut);
+        lpmtest::writeBytes(path, bytes.substr(0, cut));
         try {
             readVolume(opts(path, "voxel_fog_density"));
             ADD_FAILURE() << "a file cut at byte " << cut << " was read";
