@@ -13,6 +13,7 @@
 #include <map>
 #include <vector>
 
+#include <openvdb/Grid.h>
 #include <openvdb/io/Compression.h>
 #include <openvdb/io/DelayedLoadMetadata.h>
 #include <openvdb/io/GridDescriptor.h>
@@ -267,6 +268,10 @@ public:
             for (auto& x : c) x = r_.get<std::int32_t>(what("a root child"), limit_);
             root[c] = upper();
         }
+        // OpenVDB's writer records blockPos right after the topology and endPos right after
+        // the values, so a part that ends anywhere else was read with the wrong layout
+        // (half vs full floats, a value count) and its values would be garbage.
+        endsAt(blockPos, "its topology");
         limit_ = endPos;
         for (const auto& [origin, node] : root)
             for (const Lower& lower : node.children)
@@ -274,6 +279,7 @@ public:
                     r_.skip(64, what("a leaf mask"), limit_);
                     values(active, 512, 64);
                 }
+        endsAt(endPos, "its values");
     }
 
 private:
@@ -285,6 +291,11 @@ private:
     };
 
     What what(const char* part) const { return What(part, grid_); }
+    void endsAt(std::uint64_t expected, const char* part) const {
+        if (r_.pos() != expected)
+            r_.fail("it is corrupt (" + what(part).str() + " end at byte " + std::to_string(r_.pos()) +
+                    ", but the grid list says byte " + std::to_string(expected) + ")");
+    }
 
     /// InternalNode<InternalNode<Leaf, 4>, 5>::readTopology.
     Upper upper() {
@@ -484,6 +495,7 @@ void VdbFile::checkGridData(const GridExtent& g) {
     const std::uint64_t blockPos = std::uint64_t(g.blockPos), endPos = std::uint64_t(g.endPos);
     r.seek(std::uint64_t(g.gridPos));
     const auto compression = r.get<std::uint32_t>("the compression flags of grid '" + name + "'", blockPos);
+    const std::uint64_t metaAt = r.pos();
     r.metaMap("the metadata of grid '" + name + "'", blockPos);
     // The transform: a map type name, then that map's fixed-size fields.
     const std::uint64_t at = r.pos();
@@ -502,7 +514,25 @@ void VdbFile::checkGridData(const GridExtent& g) {
     ValueLayout v;
     if (!valueLayout(g.type, v))
         r.fail("grid '" + name + "' has tree type '" + g.type + "', which lpmbake does not read");
-    TreeCheck(r, name, v, g.half, compression).run(blockPos, endPos);
+    // Half or full floats, decided as io::File::readGrid decides: the descriptor's
+    // "_HalfFloat" suffix, overridden by the grid's own is_saved_as_half_float metadata
+    // read through MetaMap::readMeta, whatever its type (a fuzzing finding: metadata
+    // retyped from "bool" to an unknown type reads as true, and OpenVDB then read a
+    // full-float chunk of 8182 bytes into a 20-byte half buffer). The metadata was
+    // checked above, so OpenVDB can parse it here.
+    const std::uint64_t treeAt = r.pos();
+    bool half = g.half;
+    r.seek(metaAt);
+    try {
+        const openvdb::GridBase::Ptr probe = openvdb::GridBase::createGrid(g.type);
+        probe->setSaveFloatAsHalf(g.half);
+        probe->readMeta(r.stream());
+        half = probe->saveFloatAsHalf();
+    } catch (const std::exception& e) {
+        r.fail("it is corrupt (the metadata of grid '" + name + "': " + e.what() + ")");
+    }
+    r.seek(treeAt);
+    TreeCheck(r, name, v, half, compression).run(blockPos, endPos);
 }
 
 openvdb::GridBase::Ptr VdbFile::readGrid(const std::string& name) {

@@ -222,3 +222,40 @@ TEST(VdbFile, UnsupportedTreeTypeIsNamedNotRead) {
     VdbFile file(dir + "/bool.vdb");
     lpmtest::expectThrowWith<InputError>([&] { file.readGrid("mask"); }, {"mask", "Tree_bool_5_4_3", "does not read"});
 }
+
+// Half or full floats is decided by the grid's is_saved_as_half_float metadata, read as
+// MetaMap::readMeta reads it, whatever its type: a fuzzed file retyped it from "bool" to
+// an unknown type (which reads as true), and OpenVDB then read full-float chunks as half
+// floats (a Blosc-stored chunk of 8182 bytes into a 20-byte buffer under ASan). The walk
+// must decide as OpenVDB does, and a grid whose parts then end in the wrong place is
+// refused, in every compression. (Genuine half-float files read back in the test above.)
+TEST(VdbFile, HalfFloatFlagIsDecidedAsOpenVdbDecidesIt) {
+    initOpenVdb();
+    const std::string dir = lpmtest::scratchDir();
+    const std::string flag = std::string("is_saved_as_half_float") + std::string("\x04\0\0\0bool\x01\0\0\0", 12);
+    for (const std::uint32_t comp : std::vector<std::uint32_t>{
+             openvdb::io::COMPRESS_NONE, openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK,
+          openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK}) {
+        SCOPED_TRACE("compression " + std::to_string(comp));
+        const openvdb::FloatGrid::Ptr g = mixedFloatGrid();
+        g->setSaveFloatAsHalf(false);  // writes the metadata entry, as Houdini's files have it
+        const std::string path = dir + "/c" + std::to_string(comp) + ".vdb";
+        openvdb::io::File out(path);
+        out.setCompression(comp);
+        out.write(openvdb::GridPtrVec{g});
+        out.close();
+        EXPECT_DOUBLE_EQ(checksum(*openvdb::gridPtrCast<openvdb::FloatGrid>(VdbFile(path).readGrid("f"))), checksum(*g));
+
+        std::string bytes = lpmtest::readBytes(path);
+        const size_t at = bytes.find(flag);
+        ASSERT_NE(at, std::string::npos);
+        ASSERT_EQ(bytes[at + flag.size()], '\0') << "saved as full floats";
+        bytes.replace(at + 26, 4, "doub");  // an unknown type of 1 byte (0): reads as true
+        const std::string bad = dir + "/retyped" + std::to_string(comp) + ".vdb";
+        lpmtest::writeBytes(bad, bytes);
+        lpmtest::expectThrowWith<InputError>([&] { VdbFile(bad).readGrid("f"); }, {bad, "grid 'f'", "corrupt"});
+    }
+    // The fuzzing input itself (densityAndHeat.vdb retyped and crossed over).
+    const std::string found = std::string(LPM_SOURCE_DIR) + "/tests/fuzz/regressions/vdb_leaf_mask_overflow.vdb";
+    lpmtest::expectThrowWith<InputError>([&] { VdbFile(found).readGrid("density"); }, {"grid 'density'", "corrupt"});
+}
