@@ -90,7 +90,7 @@ private:
 
 /// Reads an untrusted file: every read states what it is reading and the byte where that
 /// part of the file ends, and fails (naming the file) instead of reading past it. Keeps
-/// its own position and skips short gaps by reading through a 1 MiB buffer: tellg and
+/// its own position and skips short gaps by reading through a 64 KiB buffer: tellg and
 /// seekg on a filebuf each cost a system call (and seekg drops the buffer), which per
 /// leaf doubled the time of reading a grid.
 class Reader {
@@ -293,8 +293,8 @@ private:
     What what(const char* part) const { return What(part, grid_); }
     void endsAt(std::uint64_t expected, const char* part) const {
         if (r_.pos() != expected)
-            r_.fail("it is corrupt (" + what(part).str() + " end at byte " + std::to_string(r_.pos()) +
-                    ", but the grid list says byte " + std::to_string(expected) + ")");
+            r_.fail("it is corrupt (grid '" + grid_ + "' has " + part + " ending at byte " + std::to_string(r_.pos()) +
+                    " where the grid list says byte " + std::to_string(expected) + ")");
     }
 
     /// InternalNode<InternalNode<Leaf, 4>, 5>::readTopology.
