@@ -210,7 +210,7 @@ int runCli(int argc, char** argv) {
         ->default_val(b.maxVoxels)->group(gIn);
 
     auto* gL = "Lights";
-    app.add_option("--env", b.env, "lat-long environment image (EXR, HDR, ... ; width = 2 x height)")->group(gL);
+    app.add_option("--env", b.env, "lat-long environment image (EXR, HDR, ... ; width = 2 x height, at most 32768x16384)")->group(gL);
     app.add_option("--env-colorspace", b.envColorSpace,
                    "colour space of --env (default: the file's, if the OCIO config knows it, else lin_rec709)")
         ->group(gL);

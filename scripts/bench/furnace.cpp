@@ -26,9 +26,7 @@ int main(int argc, char** argv) {
     std::printf("| line optical depth | source | iteration | passes | converged | LPM s | worst abs(S/L0 - 1) |\n");
     std::printf("|---|---|---|---|---|---|---|\n");
     for (double tau : {50.0, 500.0}) {
-        Medium m = makeVolume(VolumeKind::Cloud, 16, 1.0);
-        scaleToMaxOpticalDepth(m, tau);
-        m.albedo = RGB(1.0f);
+        const Medium m = furnaceCloud(tau);
         const float L0 = 1.5f;
         const EnvMap env = EnvMap::constant(RGB(L0));
         Lights lights;

@@ -51,9 +51,7 @@ TEST_P(LinearFurnace, SEqualsL0Everywhere) {
     // Albedo 1 under a uniform environment: L = L0 is the exact solution, with zero
     // slopes; thin (line depth 5) and thick (voxels up to optical depth ~6) clouds.
     const double tau = GetParam();
-    Medium m = makeVolume(VolumeKind::Cloud, 16, 1.0);
-    scaleToMaxOpticalDepth(m, tau);
-    m.albedo = RGB(1.0f);
+    Medium m = furnaceCloud(tau);
     m.g = 0.7;
     const float L0 = 0.75f;
     const EnvMap env = EnvMap::constant(RGB(L0));

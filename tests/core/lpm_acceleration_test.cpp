@@ -16,9 +16,7 @@ class KrylovFurnace : public ::testing::TestWithParam<double> {};
 
 TEST_P(KrylovFurnace, WithinOnePercent) {
     const double tau = GetParam();
-    Medium m = makeVolume(VolumeKind::Cloud, 16, 1.0);
-    scaleToMaxOpticalDepth(m, tau);
-    m.albedo = RGB(1.0f);
+    const Medium m = furnaceCloud(tau);
     const float L0 = 1.5f;
     const EnvMap env = EnvMap::constant(RGB(L0));
     Lights lights;

@@ -100,6 +100,15 @@ inline Comparison compare(const LpmResult& r, const std::vector<McVoxelEstimate>
     return c;
 }
 
+/// The white-furnace volume: the heterogeneous 16^3 cloud scaled to a largest line
+/// optical depth `tau`, albedo 1 (lit by a constant environment, S = L0 everywhere).
+inline Medium furnaceCloud(double tau) {
+    Medium m = makeVolume(VolumeKind::Cloud, 16, 1.0);
+    scaleToMaxOpticalDepth(m, tau);
+    m.albedo = RGB(1.0f);
+    return m;
+}
+
 /// Worst |S/L0 - 1| of band 0 (red) over voxels with sigma_t > 0: the white-furnace check.
 inline double worstFurnaceError(const Medium& m, const LpmResult& r, float L0) {
     double worst = 0;

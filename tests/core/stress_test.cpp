@@ -24,19 +24,25 @@ void checkInvariants(const Medium& m, const Lights& lights, const LpmResult& r, 
         if (p.krylov) continue;
         EXPECT_TRUE(std::isfinite(p.scattered));
         scattered += p.scattered;
-        if (p.pass > 0 && prev < INFINITY) EXPECT_LE(p.scattered, prev * (1 + 1e-6) + 1e-30);
+        if (p.pass > 0 && prev < INFINITY) {
+            EXPECT_LE(p.scattered, prev * (1 + 1e-6) + 1e-30);
+        }
         prev = p.scattered;
     }
     // Total scattered over all orders can exceed injected only by re-scattering the same
     // energy; each order's scattered power is bounded by what entered it.
-    if (!r.passes.empty()) EXPECT_LE(r.passes[0].scattered, r.injected * (1 + 1e-6) + 1e-30);
+    if (!r.passes.empty()) {
+        EXPECT_LE(r.passes[0].scattered, r.injected * (1 + 1e-6) + 1e-30);
+    }
     EXPECT_NEAR(r.absorbed + r.escaped + r.unshot, r.injected, 2e-3 * r.injected + 1e-30);
     float envMax = lights.env ? lights.env->maxValue() : 0.0f;
     for (size_t v = 0; v < m.voxelCount(); ++v) {
         for (int c = 0; c < 3; ++c) {
             const float b0 = r.coeff(v, 0)[c] * float(kY00);
             EXPECT_GE(b0, -1e-6f * (envMax + 1e-30f));
-            if (lights.suns.empty() && !m.hasEmission()) EXPECT_LE(b0, envMax * (1 + 2e-3f));
+            if (lights.suns.empty() && !m.hasEmission()) {
+                EXPECT_LE(b0, envMax * (1 + 2e-3f));
+            }
         }
     }
 }
