@@ -256,6 +256,6 @@ TEST(VdbFile, HalfFloatFlagIsDecidedAsOpenVdbDecidesIt) {
         lpmtest::expectThrowWith<InputError>([&] { VdbFile(bad).readGrid("f"); }, {bad, "grid 'f'", "corrupt"});
     }
     // The fuzzing input itself (densityAndHeat.vdb retyped and crossed over).
-    const std::string found = std::string(LPM_SOURCE_DIR) + "/tests/fuzz/regressions/vdb_leaf_mask_overflow.vdb";
+    const std::string found = std::string(LPM_SOURCE_DIR) + "/tests/fuzz/regressions/vdb_half_flag_overflow.vdb";
     lpmtest::expectThrowWith<InputError>([&] { VdbFile(found).readGrid("density"); }, {"grid 'density'", "corrupt"});
 }
