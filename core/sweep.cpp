@@ -27,7 +27,7 @@
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(LPM_NO_CLONES)
 // One binary, the best of AVX-512 / AVX2+FMA / SSE2 chosen at load time (GCC ifunc).
-#define LPM_SIMD_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#define LPM_SIMD_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 #else
 #define LPM_SIMD_CLONES
 #endif
@@ -39,8 +39,10 @@ namespace {
 // exp(-x), x >= 0: Cody-Waite reduction x = n ln2 - r, |r| <= ln2/2, Cephes' degree-6
 // polynomial, 2^n by exponent bits. Above 87 (where e^-x is denormal) exactly 0.
 inline float expNegInline(float x) {
-    const float y = -std::min(x, 87.0f);
-    const float n = std::nearbyint(y * 1.44269504088896341f);
+    const float xc = x < 87.0f ? x : 87.0f;  // selects, not std::min: keeps the loop branch-free
+    const float y = -xc;
+    // Round to nearest by adding 1.5 * 2^23 (no libm call, vectorises without SSE4.1).
+    const float n = (y * 1.44269504088896341f + 12582912.0f) - 12582912.0f;
     float r = y - n * 0.693359375f;
     r = r + n * 2.12194440e-4f;
     float p = 1.9875691500e-4f;
@@ -50,11 +52,12 @@ inline float expNegInline(float x) {
     p = p * r + 1.6666665459e-1f;
     p = p * r + 5.0000001201e-1f;
     p = p * r * r + r + 1.0f;
-    const int e = int(n) + 127;
+    const std::int32_t e = std::int32_t(n) + 127;  // >= 1 for x <= 87
+    const std::int32_t bits = e << 23;
     float scale;
-    const std::uint32_t bits = std::uint32_t(std::max(e, 0)) << 23;
     std::memcpy(&scale, &bits, sizeof scale);
-    return x < 87.0f ? p * scale : 0.0f;
+    const float value = p * scale;  // computed unconditionally: a select, not a branch, under -ftrapping-math
+    return x < 87.0f ? value : 0.0f;
 }
 
 struct Planes {  // one slice of the block, dense, index cu + nu * cv
@@ -72,7 +75,7 @@ LPM_SIMD_CLONES void segmentRun(int n, float len, const float* __restrict sig, c
     for (int i = 0; i < n; ++i) {
         const float tau = sig[i] * len;
         const float T = expNegInline(tau);
-        const float inv = 1.0f / std::max(tau, 1e-30f);
+        const float inv = 1.0f / (tau > 1e-30f ? tau : 1e-30f);
         const float e1l = len * (1.0f - T) * inv;
         const float e2l = len * (len - e1l) * inv;
         // Series of (1 - e^-t)/t and (t - 1 + e^-t)/t^2, truncation < 2e-9 below 1/4.
