@@ -60,7 +60,8 @@ inline float expNegInline(float x) {
     return x < 87.0f ? value : 0.0f;
 }
 
-struct Planes {  // one slice of the block, dense, index cu + nu * cv
+// One tile layer (up to 8 slices) of the block, dense: index cu + nu * (cv + nv * slice).
+struct LayerPlanes {
     std::vector<float> sigma, q[3], dep[3];
     std::vector<int> spanLo, spanHi;  // per voxel row: columns in allocated tiles (tile-granular)
 };
@@ -113,7 +114,8 @@ inline int wrap(long long x, int n) {
 struct Geometry {
     int a, u, v, nu, nv, na, r, su, sv;
     double du, dv, sliceLen, aPerp;
-    size_t rays;  // r^2 nu nv
+    int nuPad;    // row stride of rays and planes: nu rounded up to 8 (whole vectors, no remainders)
+    size_t rays;  // r^2 nuPad nv
     Geometry(const Medium& m, const Job& job, int r_) : r(r_) {
         a = job.axis;
         u = (a + 1) % 3;
@@ -130,7 +132,8 @@ struct Geometry {
         na = N[a];
         su = du > 0 ? 1 : -1;
         sv = dv > 0 ? 1 : -1;
-        rays = size_t(r) * r * nu * nv;
+        nuPad = (nu + 7) / 8 * 8;
+        rays = size_t(r) * r * nuPad * nv;
     }
 };
 
@@ -186,21 +189,26 @@ void mergeEvents(const std::vector<double>& lu, const std::vector<double>& lv, d
     }
 }
 
-// The state of one sweepStep call: rays, the current slice's planes and the tallies.
+// The state of one sweepStep call: rays, the current tile layer's planes and the tallies.
+// The medium is read and the deposits written one 8^3 tile at a time, in storage order.
 class StepSweep {
 public:
-    StepSweep(const Medium& m, const Job& job, int r) : m_(m), job_(job), g_(m, job, r) {
+    static constexpr int K = Medium::kTile;
+
+    StepSweep(const Medium& m, const Job& job, int r, float depositScale)
+        : m_(m), job_(job), g_(m, job, r), depositScale_(depositScale) {
         const float bnd[3] = {job.boundary.r, job.boundary.g, job.boundary.b};
         for (int c = 0; c < 3; ++c) {
             bnd_[c] = bnd[c];
             L_[c].assign(g_.rays, bnd[c]);
-            inj_[c] = double(bnd[c]) * double(g_.rays);
+            inj_[c] = double(bnd[c]) * double(size_t(r) * r * g_.nu * g_.nv);  // padding lanes excluded
         }
-        const size_t plane = size_t(g_.nu) * g_.nv;
-        P_.sigma.assign(plane, 0.0f);
+        plane_ = size_t(g_.nuPad) * g_.nv;
+        const size_t layer = plane_ * K;
+        P_.sigma.assign(layer, 0.0f);
         for (int c = 0; c < 3; ++c) {
-            P_.dep[c].assign(plane, 0.0f);
-            if (job.src) P_.q[c].assign(plane, 0.0f);
+            P_.dep[c].assign(layer, 0.0f);
+            if (job.src) P_.q[c].assign(layer, 0.0f);
         }
         P_.spanLo.assign(size_t(g_.nv), 0);
         P_.spanHi.assign(size_t(g_.nv), 0);
@@ -210,33 +218,22 @@ public:
             stU_[j].f = (j + job.offsetU) / r;
             stV_[j].f = (j + job.offsetV) / r;
         }
+        tnu_ = (g_.nu + K - 1) / K;
+        tnv_ = (g_.nv + K - 1) / K;
     }
 
     void run(float* phi, Tally& tally) {
-        const int r = g_.r;
-        std::vector<std::vector<double>> lamU(static_cast<size_t>(r)), lamV(static_cast<size_t>(r));
-        std::vector<long long> SU(static_cast<size_t>(r)), SV(static_cast<size_t>(r));
-        std::vector<Event> ev;
-        for (int t = 0; t < g_.na; ++t) {
-            const int ia = job_.sign > 0 ? t : g_.na - 1 - t;
-            gather(ia);
-            for (int j = 0; j < r; ++j) {
-                SU[j] = stU_[j].S;
-                SV[j] = stV_[j].S;
-                crossings(stU_[j], g_.du, lamU[j]);
-                crossings(stV_[j], g_.dv, lamV[j]);
-            }
-            for (int jv = 0; jv < r; ++jv)
-                for (int ju = 0; ju < r; ++ju) {
-                    mergeEvents(lamU[ju], lamV[jv], g_.sliceLen, ev);
-                    const size_t cls = size_t(jv * r + ju) * g_.nv * g_.nu;
-                    for (int cellV = 0; cellV < g_.nv; ++cellV)
-                        processRow(cls + size_t(cellV) * g_.nu, cellV, SU[ju], SV[jv], ev);
-                }
-            scatter(ia, phi);
+        const int layers = (g_.na + K - 1) / K;
+        for (int l = 0; l < layers; ++l) {
+            const int layer = job_.sign > 0 ? l : layers - 1 - l;
+            const bool any = gather(layer);
+            const int s0 = layer * K, s1 = std::min(g_.na, s0 + K);
+            for (int k = 0; k < s1 - s0; ++k) sweepSlice(job_.sign > 0 ? s0 + k : s1 - 1 - k, any);
+            if (any) scatter(layer, phi);
         }
         for (int c = 0; c < 3; ++c)
-            for (float x : L_[c]) esc_[c] += x;
+            for (size_t row = 0; row < g_.rays; row += size_t(g_.nuPad))
+                for (int i = 0; i < g_.nu; ++i) esc_[c] += L_[c][row + size_t(i)];
         const double k = g_.aPerp * job_.weight, V = m_.voxelVolume();
         const double alb[3] = {m_.albedo.r, m_.albedo.g, m_.albedo.b};
         for (int c = 0; c < 3; ++c) {
@@ -249,22 +246,11 @@ public:
     }
 
 private:
-    // Storage index of the voxel at (slice ia, column cu, row cv) inside tile slot `slot`.
-    size_t voxelIndex(std::int32_t slot, int ia, int cu, int cv) const {
-        int c3[3];
-        c3[g_.a] = ia;
-        c3[g_.u] = cu;
-        c3[g_.v] = cv;
-        if (slot < 0) return size_t(c3[0]) + size_t(m_.nx) * (size_t(c3[1]) + size_t(m_.ny) * c3[2]);
-        const int K = Medium::kTile;
-        return size_t(slot) * Medium::kTileVoxels + size_t(c3[0] % K) + K * (size_t(c3[1] % K) + K * size_t(c3[2] % K));
-    }
-    // Slot of tile (tu, tv) in the tile layer of slice ia: -1 dense, -2 unallocated.
-    std::int32_t tileSlot(int ia, int tu, int tv) const {
+    // Slot of tile (tu, tv) of tile layer `layer`: -1 dense storage, -2 unallocated.
+    std::int32_t tileSlot(int layer, int tu, int tv) const {
         if (!m_.sparse()) return -1;
-        const int K = Medium::kTile;
         int t3[3];
-        t3[g_.a] = ia / K;
+        t3[g_.a] = layer;
         t3[g_.u] = tu;
         t3[g_.v] = tv;
         const std::int32_t s =
@@ -272,70 +258,112 @@ private:
         return s < 0 ? -2 : s;
     }
 
-    // Fills the planes for slice ia over the span of allocated tiles of each tile row.
-    void gather(int ia) {
-        const int K = Medium::kTile, tnu = (g_.nu + K - 1) / K, tnv = (g_.nv + K - 1) / K;
-        const double sc[3] = {job_.srcScale.r, job_.srcScale.g, job_.srcScale.b};
-        for (int tv = 0; tv < tnv; ++tv) {
+    // Calls f(storage index, plane index) for the block voxels of tile (layer, tu, tv),
+    // in storage order.
+    template <class F>
+    void forTileVoxels(std::int32_t slot, int layer, int tu, int tv, F&& f) const {
+        int t3[3];
+        t3[g_.a] = layer;
+        t3[g_.u] = tu;
+        t3[g_.v] = tv;
+        const int N[3] = {m_.nx, m_.ny, m_.nz};
+        int c3[3];
+        for (int lz = 0; lz < K; ++lz)
+            for (int ly = 0; ly < K; ++ly)
+                for (int lx = 0; lx < K; ++lx) {
+                    c3[0] = t3[0] * K + lx;
+                    c3[1] = t3[1] * K + ly;
+                    c3[2] = t3[2] * K + lz;
+                    if (c3[0] >= N[0] || c3[1] >= N[1] || c3[2] >= N[2]) continue;
+                    const size_t x = slot >= 0 ? size_t(slot) * Medium::kTileVoxels + size_t(lx + K * (ly + K * lz))
+                                               : size_t(c3[0]) + size_t(N[0]) * (size_t(c3[1]) + size_t(N[1]) * c3[2]);
+                    const size_t p = size_t(c3[g_.u]) + size_t(g_.nuPad) * (size_t(c3[g_.v]) + size_t(g_.nv) * (c3[g_.a] - layer * K));
+                    f(x, p);
+                }
+    }
+
+    // Fills the layer's planes over the span of allocated tiles of each tile row; returns
+    // whether the layer holds any allocated tile.
+    bool gather(int layer) {
+        const float sc[3] = {job_.srcScale.r, job_.srcScale.g, job_.srcScale.b};
+        bool any = false;
+        for (int tv = 0; tv < tnv_; ++tv) {
             int first = -1, last = -1;
-            for (int tu = 0; tu < tnu; ++tu)
-                if (tileSlot(ia, tu, tv) != -2) {
+            for (int tu = 0; tu < tnu_; ++tu)
+                if (tileSlot(layer, tu, tv) != -2) {
                     if (first < 0) first = tu;
                     last = tu;
                 }
+            any = any || first >= 0;
             const int lo = first < 0 ? 0 : first * K, hi = first < 0 ? 0 : std::min(g_.nu, (last + 1) * K);
-            const int v1 = std::min(g_.nv, (tv + 1) * K);
-            for (int cv = tv * K; cv < v1; ++cv) {
+            for (int cv = tv * K; cv < std::min(g_.nv, (tv + 1) * K); ++cv) {
                 P_.spanLo[cv] = lo;
                 P_.spanHi[cv] = hi;
             }
             for (int tu = std::max(first, 0); first >= 0 && tu <= last; ++tu) {
-                const std::int32_t slot = tileSlot(ia, tu, tv);
-                const int u1 = std::min(g_.nu, (tu + 1) * K);
-                for (int cv = tv * K; cv < v1; ++cv)
-                    for (int cu = tu * K; cu < u1; ++cu) {
-                        const size_t p = size_t(cv) * g_.nu + cu;
-                        for (int c = 0; c < 3; ++c) P_.dep[c][p] = 0.0f;
-                        if (slot == -2) {
-                            P_.sigma[p] = 0.0f;
-                            if (job_.src)
-                                for (int c = 0; c < 3; ++c) P_.q[c][p] = 0.0f;
-                            continue;
-                        }
-                        const size_t x = voxelIndex(slot, ia, cu, cv);
-                        const float s = m_.sigmaT[x];
-                        P_.sigma[p] = s;
-                        if (job_.src)
-                            for (int c = 0; c < 3; ++c)
-                                P_.q[c][p] = float(double(s) * sc[c] * job_.src[x * job_.srcStride + c]);
-                    }
+                const std::int32_t slot = tileSlot(layer, tu, tv);
+                // An unallocated tile inside the span reads as empty: use dense indexing
+                // only to enumerate its plane positions.
+                forTileVoxels(slot == -2 ? -1 : slot, layer, tu, tv, [&](size_t x, size_t p) {
+                    for (int c = 0; c < 3; ++c) P_.dep[c][p] = 0.0f;
+                    const float s = slot == -2 ? 0.0f : m_.sigmaT[x];
+                    P_.sigma[p] = s;
+                    if (job_.src)
+                        for (int c = 0; c < 3; ++c)
+                            P_.q[c][p] = slot == -2 ? 0.0f : s * sc[c] * job_.src[x * job_.srcStride + c];
+                });
             }
         }
+        return any;
     }
 
-    // Adds the slice's deposits to phi (allocated voxels only) and tallies them.
-    void scatter(int ia, float* phi) {
-        const int K = Medium::kTile, tnu = (g_.nu + K - 1) / K, tnv = (g_.nv + K - 1) / K;
-        const float aPerp = float(g_.aPerp);
-        for (int tv = 0; tv < tnv; ++tv)
-            for (int tu = 0; tu < tnu; ++tu) {
-                const std::int32_t slot = tileSlot(ia, tu, tv);
+    // Adds the layer's deposits to phi (allocated voxels only) and tallies them (float sums
+    // per tile, added in double).
+    void scatter(int layer, float* phi) {
+        const float k = float(g_.aPerp) * depositScale_;
+        for (int tv = 0; tv < tnv_; ++tv)
+            for (int tu = 0; tu < tnu_; ++tu) {
+                const std::int32_t slot = tileSlot(layer, tu, tv);
                 if (slot == -2) continue;
-                const int u1 = std::min(g_.nu, (tu + 1) * K), v1 = std::min(g_.nv, (tv + 1) * K);
-                for (int cv = tv * K; cv < v1; ++cv)
-                    for (int cu = tu * K; cu < u1; ++cu) {
-                        const size_t p = size_t(cv) * g_.nu + cu, x = voxelIndex(slot, ia, cu, cv);
-                        const double s = P_.sigma[p];
-                        for (int c = 0; c < 3; ++c) {
-                            const float d = P_.dep[c][p];
-                            phi[x * 3 + c] += aPerp * d;
-                            sca_[c] += s * d;
-                            if (job_.src) injSrc_[c] += P_.q[c][p];
-                        }
+                float sca[3] = {0, 0, 0}, src[3] = {0, 0, 0};
+                forTileVoxels(slot, layer, tu, tv, [&](size_t x, size_t p) {
+                    const float s = P_.sigma[p];
+                    for (int c = 0; c < 3; ++c) {
+                        const float d = P_.dep[c][p];
+                        phi[x * 3 + c] += k * d;
+                        sca[c] += s * d;
                     }
+                    if (job_.src)
+                        for (int c = 0; c < 3; ++c) src[c] += P_.q[c][p];
+                });
+                for (int c = 0; c < 3; ++c) {
+                    sca_[c] += sca[c];
+                    injSrc_[c] += src[c];
+                }
             }
     }
 
+    // One slice: every ray row, every lattice class in it (rows outer, so the plane rows a
+    // row of rays touches stay in L1 across the r^2 classes).
+    void sweepSlice(int ia, bool any) {
+        const int r = g_.r;
+        for (int j = 0; j < r; ++j) {
+            SV_[j] = int(wrap(stV_[j].S, g_.nv));
+            crossings(stU_[j], g_.du, lamU_[j]);
+            crossings(stV_[j], g_.dv, lamV_[j]);
+        }
+        for (int jv = 0; jv < r; ++jv)
+            for (int ju = 0; ju < r; ++ju) mergeEvents(lamU_[ju], lamV_[jv], g_.sliceLen, ev_[size_t(jv * r + ju)]);
+        sliceOffset_ = size_t(ia % K) * plane_;
+        for (int cellV = 0; cellV < g_.nv; ++cellV)
+            for (int jv = 0; jv < r; ++jv)
+                for (int ju = 0; ju < r; ++ju) {
+                    const size_t cls = size_t(jv * r + ju) * plane_;
+                    processRow(cls + size_t(cellV) * g_.nuPad, cellV, SV_[jv], ev_[size_t(jv * r + ju)], any);
+                }
+    }
+
+    // Ray radiance at index i leaves the block: tallied as escaped, replaced by the boundary.
     void resetRay(size_t i) {
         for (int c = 0; c < 3; ++c) {
             esc_[c] += L_[c][i];
@@ -344,36 +372,58 @@ private:
         }
     }
 
-    // Applies one class's events in slice order to the nu rays of one row starting at ray
-    // index `row` (lane = cell along u); SU, SV: the class's cell shifts at slice start.
-    void processRow(size_t row, int cellV, long long SU, long long SV, const std::vector<Event>& ev) {
-        const int nu = g_.nu, nv = g_.nv;
-        long long offU = 0, offV = 0;
-        for (const Event& e : ev) {
-            if (e.kind == 1) {  // the ray in the boundary column leaves and re-enters opposite
-                resetRay(row + size_t(wrap((g_.su > 0 ? nu - 1 : 0) - SU - offU, nu)));
-                offU += g_.su;
-                continue;
+    // A u crossing of a row of rays kept in column order: every ray moves one column, the
+    // one leaving the block re-enters at the opposite face with the boundary radiance.
+    void shiftRow(size_t row) {
+        const int nu = g_.nu;
+        if (g_.su > 0) {
+            resetRay(row + size_t(nu - 1));
+            for (int c = 0; c < 3; ++c) {
+                float* L = &L_[c][row];
+                const float in = L[nu - 1];
+                std::memmove(L + 1, L, sizeof(float) * size_t(nu - 1));
+                L[0] = in;
             }
-            if (e.kind == 2) {  // the whole row leaves through a v face
-                if (wrap(cellV + SV + offV, nv) == (g_.sv > 0 ? nv - 1 : 0))
-                    for (int i = 0; i < nu; ++i) resetRay(row + size_t(i));
-                offV += g_.sv;
-                continue;
+        } else {
+            resetRay(row);
+            for (int c = 0; c < 3; ++c) {
+                float* L = &L_[c][row];
+                const float in = L[0];
+                std::memmove(L, L + 1, sizeof(float) * size_t(nu - 1));
+                L[nu - 1] = in;
             }
-            const int vr = wrap(cellV + SV + offV, nv);
-            const int lo = P_.spanLo[vr], hi = P_.spanHi[vr];
-            if (lo >= hi) continue;  // the voxel row lies in empty tiles: nothing changes
-            const int B = wrap(SU + offU, nu);  // lane i sits in column (i + B) mod nu
-            segment(e.len, vr, std::max(lo, B), hi, row + size_t(std::max(lo, B) - B));
-            segment(e.len, vr, lo, std::min(hi, B), row + size_t(lo + nu - B));
         }
     }
 
-    // One segment for the rays over columns [c0, c1) of voxel row vr, first ray `ray`.
-    void segment(double len, int vr, int c0, int c1, size_t ray) {
-        if (c1 <= c0) return;
-        const size_t p = size_t(vr) * g_.nu + c0;
+    // Applies one class's events in slice order to the rays of one row (ray index `row`,
+    // lane = column); SV: the class's row shift at slice start, in [0, nv).
+    void processRow(size_t row, int cellV, int SV, const std::vector<Event>& ev, bool any) {
+        const int nu = g_.nu, nv = g_.nv;
+        int vr = cellV + SV;  // the voxel row the rays are in
+        if (vr >= nv) vr -= nv;
+        for (const Event& e : ev) {
+            if (e.kind == 1) {
+                shiftRow(row);
+                continue;
+            }
+            if (e.kind == 2) {  // the whole row moves to the next voxel row, or leaves the block
+                if (vr == (g_.sv > 0 ? nv - 1 : 0))
+                    for (int i = 0; i < nu; ++i) resetRay(row + size_t(i));
+                vr += g_.sv;
+                vr = vr < 0 ? nv - 1 : (vr >= nv ? 0 : vr);
+                continue;
+            }
+            if (!any) continue;  // the slice lies in empty tiles: rays cross it unchanged
+            const int lo = P_.spanLo[vr], hi = P_.spanHi[vr];
+            if (lo >= hi) continue;  // the voxel row lies in empty tiles
+            // lo is tile-aligned; hi rounds up into the padding columns (sigma = 0 there).
+            segment(e.len, vr, lo, (hi + 7) / 8 * 8, row);
+        }
+    }
+
+    // One segment for the rays over columns [c0, c1) of voxel row vr of ray row `row`.
+    void segment(double len, int vr, int c0, int c1, size_t row) {
+        const size_t p = sliceOffset_ + size_t(vr) * g_.nuPad + c0, ray = row + size_t(c0);
         float *L0 = &L_[0][ray], *L1 = &L_[1][ray], *L2 = &L_[2][ray];
         float *d0 = &P_.dep[0][p], *d1 = &P_.dep[1][p], *d2 = &P_.dep[2][p];
         if (job_.src)
@@ -381,15 +431,21 @@ private:
                              d1, d2);
         else
             segmentRun<false>(c1 - c0, float(len), &P_.sigma[p], nullptr, nullptr, nullptr, L0, L1, L2, d0, d1, d2);
-        segs_ += std::uint64_t(c1 - c0);
+        segs_ += std::uint64_t(std::min(c1, g_.nu) - c0);
     }
 
     const Medium& m_;
     const Job& job_;
     const Geometry g_;
-    std::vector<float> L_[3];
-    Planes P_;
+    const float depositScale_;
+    size_t plane_ = 0, sliceOffset_ = 0;
+    int tnu_ = 0, tnv_ = 0;
+    std::vector<float> L_[3];  // ray radiance, [class][cell v][column]; columns >= nu are padding
+    LayerPlanes P_;
     std::vector<ClassState> stU_, stV_;
+    std::vector<double> lamU_[16], lamV_[16];  // this slice's crossings per class (r <= 16)
+    int SV_[16] = {};
+    std::vector<Event> ev_[256];
     float bnd_[3];
     double inj_[3] = {0, 0, 0}, esc_[3] = {0, 0, 0}, sca_[3] = {0, 0, 0}, injSrc_[3] = {0, 0, 0};
     std::uint64_t segs_ = 0;
@@ -399,9 +455,10 @@ private:
 
 float expNeg(float x) { return expNegInline(x); }
 
-void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
+void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally, float depositScale) {
+    if (r < 1 || r > 16) throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(r));
     if (job.srcLinear) throw Error("LPM", "sweepStep takes a voxel-constant source only");
-    StepSweep(m, job, r).run(phi, tally);
+    StepSweep(m, job, r, depositScale).run(phi, tally);
 }
 
 }  // namespace lpm

@@ -60,9 +60,10 @@ int dominantAxis(const Vec3& w);
 template <bool Linear>
 void sweepReference(const Medium& m, const Job& job, int r, float* phi, Tally& tally);
 
-/// Fast kernel for a voxel-constant source: phi [stored voxel][rgb], added to. Results agree
-/// with sweepReference<false> to float rounding; the tally is identical in meaning.
-void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally);
+/// Fast kernel for a voxel-constant source: phi [stored voxel][rgb] += depositScale * Phi.
+/// Results agree with sweepReference<false> to float rounding; the tally is identical in
+/// meaning (it does not include depositScale).
+void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally, float depositScale = 1.0f);
 
 /// The exponential used by sweepStep: exp(-x) for x >= 0, relative error below 3e-7
 /// (measured over [0, 87] in tests/core/sweep_test.cpp), exactly 0 above 87.
