@@ -60,47 +60,54 @@ inline float expNegInline(float x) {
     return x < 87.0f ? value : 0.0f;
 }
 
-// One tile layer (up to 8 slices) of the block, dense: index cu + nu * (cv + nv * slice).
-struct LayerPlanes {
-    std::vector<float> sigma, q[3], dep[3];
-    std::vector<int> spanLo, spanHi;  // per voxel row: columns in allocated tiles (tile-granular)
-};
 
-// One segment of length len for n rays (radiance L) over n voxels of a plane row.
+// Layout of a plane chunk: the 8 voxels of one tile along one voxel row, as 7 arrays of 8
+// floats (sigma, source q0..q2, deposit d0..d2): 56 floats, chunks of a row contiguous.
+constexpr int kLanes = 8, kChunk = 7 * kLanes;
+// Layout of a ray row: 3 channels of nuPad floats each, contiguous.
+
+// One segment of length len for `chunks` x 8 rays (ray row L: channels nuPad apart) over
+// as many voxels of a plane row (chunk layout above).
 template <bool Source>
-LPM_SIMD_CLONES void segmentRun(int n, float len, const float* __restrict sig, const float* __restrict q0,
-                                const float* __restrict q1, const float* __restrict q2, float* __restrict L0,
-                                float* __restrict L1, float* __restrict L2, float* __restrict d0,
-                                float* __restrict d1, float* __restrict d2) {
+LPM_SIMD_CLONES void segmentChunks(int chunks, float len, float* __restrict plane, float* __restrict L, size_t nuPad) {
     const float len2 = len * len;
-    for (int i = 0; i < n; ++i) {
-        const float tau = sig[i] * len;
-        const float T = expNegInline(tau);
-        const float inv = 1.0f / (tau > 1e-30f ? tau : 1e-30f);
-        const float e1l = len * (1.0f - T) * inv;
-        const float e2l = len * (len - e1l) * inv;
-        // Series of (1 - e^-t)/t and (t - 1 + e^-t)/t^2, truncation < 2e-9 below 1/4.
-        const float e1s =
-            len * (1.0f - tau * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120 - tau * (1.0f / 720))))));
-        const float e2s =
-            len2 * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120 - tau * (1.0f / 720 - tau * (1.0f / 5040))))));
-        const bool small = tau < 0.25f;
-        const float e1 = small ? e1s : e1l, e2 = small ? e2s : e2l;
-        if (Source) {
-            const float I0 = L0[i] * e1 + q0[i] * e2, I1 = L1[i] * e1 + q1[i] * e2, I2 = L2[i] * e1 + q2[i] * e2;
-            L0[i] = L0[i] * T + q0[i] * e1;
-            L1[i] = L1[i] * T + q1[i] * e1;
-            L2[i] = L2[i] * T + q2[i] * e1;
-            d0[i] += I0;
-            d1[i] += I1;
-            d2[i] += I2;
-        } else {
-            d0[i] += L0[i] * e1;
-            d1[i] += L1[i] * e1;
-            d2[i] += L2[i] * e1;
-            L0[i] *= T;
-            L1[i] *= T;
-            L2[i] *= T;
+    float* __restrict L0 = L;
+    float* __restrict L1 = L + nuPad;
+    float* __restrict L2 = L + 2 * nuPad;
+    for (int k = 0; k < chunks; ++k, plane += kChunk, L0 += kLanes, L1 += kLanes, L2 += kLanes) {
+        const float* __restrict sig = plane;
+        const float* __restrict q = plane + kLanes;
+        float* __restrict d = plane + 4 * kLanes;
+        for (int i = 0; i < kLanes; ++i) {
+            const float tau = sig[i] * len;
+            const float T = expNegInline(tau);
+            const float inv = 1.0f / (tau > 1e-30f ? tau : 1e-30f);
+            const float e1l = len * (1.0f - T) * inv;
+            const float e2l = len * (len - e1l) * inv;
+            // Series of (1 - e^-t)/t and (t - 1 + e^-t)/t^2, truncation < 2e-9 below 1/4.
+            const float e1s =
+                len * (1.0f - tau * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120 - tau * (1.0f / 720))))));
+            const float e2s = len2 * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120 - tau * (1.0f / 720 -
+                                                                                                     tau * (1.0f / 5040))))));
+            const bool small = tau < 0.25f;
+            const float e1 = small ? e1s : e1l, e2 = small ? e2s : e2l;
+            if (Source) {
+                const float I0 = L0[i] * e1 + q[i] * e2, I1 = L1[i] * e1 + q[kLanes + i] * e2,
+                            I2 = L2[i] * e1 + q[2 * kLanes + i] * e2;
+                L0[i] = L0[i] * T + q[i] * e1;
+                L1[i] = L1[i] * T + q[kLanes + i] * e1;
+                L2[i] = L2[i] * T + q[2 * kLanes + i] * e1;
+                d[i] += I0;
+                d[kLanes + i] += I1;
+                d[2 * kLanes + i] += I2;
+            } else {
+                d[i] += L0[i] * e1;
+                d[kLanes + i] += L1[i] * e1;
+                d[2 * kLanes + i] += L2[i] * e1;
+                L0[i] *= T;
+                L1[i] *= T;
+                L2[i] *= T;
+            }
         }
     }
 }
@@ -114,8 +121,6 @@ inline int wrap(long long x, int n) {
 struct Geometry {
     int a, u, v, nu, nv, na, r, su, sv;
     double du, dv, sliceLen, aPerp;
-    int nuPad;    // row stride of rays and planes: nu rounded up to 8 (whole vectors, no remainders)
-    size_t rays;  // r^2 nuPad nv
     Geometry(const Medium& m, const Job& job, int r_) : r(r_) {
         a = job.axis;
         u = (a + 1) % 3;
@@ -132,8 +137,6 @@ struct Geometry {
         na = N[a];
         su = du > 0 ? 1 : -1;
         sv = dv > 0 ? 1 : -1;
-        nuPad = (nu + 7) / 8 * 8;
-        rays = size_t(r) * r * nuPad * nv;
     }
 };
 
@@ -191,35 +194,34 @@ void mergeEvents(const std::vector<double>& lu, const std::vector<double>& lv, d
 
 // The state of one sweepStep call: rays, the current tile layer's planes and the tallies.
 // The medium is read and the deposits written one 8^3 tile at a time, in storage order.
+// Planes: voxel row (cv, slice s of the layer) at ((cv * 8 + s) * tnu) chunks, column cu
+// in chunk cu / 8, lane cu % 8. Rays: row (cell v, class) at (cellV r^2 + class) 3 nuPad,
+// lane = column (a u crossing shifts the row), columns >= nu are padding.
 class StepSweep {
 public:
     static constexpr int K = Medium::kTile;
 
     StepSweep(const Medium& m, const Job& job, int r, float depositScale)
         : m_(m), job_(job), g_(m, job, r), depositScale_(depositScale) {
-        const float bnd[3] = {job.boundary.r, job.boundary.g, job.boundary.b};
+        tnu_ = (g_.nu + K - 1) / K;
+        const size_t nuPad = size_t(tnu_) * K;
+        rowStride_ = 3 * nuPad;
+        L_.assign(size_t(r) * r * g_.nv * rowStride_, 0.0f);
         for (int c = 0; c < 3; ++c) {
-            bnd_[c] = bnd[c];
-            L_[c].assign(g_.rays, bnd[c]);
-            inj_[c] = double(bnd[c]) * double(size_t(r) * r * g_.nu * g_.nv);  // padding lanes excluded
+            bnd_[c] = (&job.boundary.r)[c];
+            inj_[c] = double(bnd_[c]) * double(size_t(r) * r * g_.nu * g_.nv);  // padding lanes excluded
         }
-        plane_ = size_t(g_.nuPad) * g_.nv;
-        const size_t layer = plane_ * K;
-        P_.sigma.assign(layer, 0.0f);
-        for (int c = 0; c < 3; ++c) {
-            P_.dep[c].assign(layer, 0.0f);
-            if (job.src) P_.q[c].assign(layer, 0.0f);
-        }
-        P_.spanLo.assign(size_t(g_.nv), 0);
-        P_.spanHi.assign(size_t(g_.nv), 0);
+        for (size_t row = 0; row < L_.size(); row += rowStride_)
+            for (int c = 0; c < 3; ++c) std::fill_n(&L_[row + c * nuPad], nuPad, bnd_[c]);
+        P_.assign(size_t(g_.nv) * K * tnu_ * kChunk, 0.0f);
+        spanLo_.assign(size_t(g_.nv), 0);
+        spanHi_.assign(size_t(g_.nv), 0);
         stU_.resize(size_t(r));
         stV_.resize(size_t(r));
         for (int j = 0; j < r; ++j) {
             stU_[j].f = (j + job.offsetU) / r;
             stV_[j].f = (j + job.offsetV) / r;
         }
-        tnu_ = (g_.nu + K - 1) / K;
-        tnv_ = (g_.nv + K - 1) / K;
     }
 
     void run(float* phi, Tally& tally) {
@@ -231,9 +233,10 @@ public:
             for (int k = 0; k < s1 - s0; ++k) sweepSlice(job_.sign > 0 ? s0 + k : s1 - 1 - k, any);
             if (any) scatter(layer, phi);
         }
-        for (int c = 0; c < 3; ++c)
-            for (size_t row = 0; row < g_.rays; row += size_t(g_.nuPad))
-                for (int i = 0; i < g_.nu; ++i) esc_[c] += L_[c][row + size_t(i)];
+        const size_t nuPad = rowStride_ / 3;
+        for (size_t row = 0; row < L_.size(); row += rowStride_)
+            for (int c = 0; c < 3; ++c)
+                for (int i = 0; i < g_.nu; ++i) esc_[c] += L_[row + c * nuPad + size_t(i)];
         const double k = g_.aPerp * job_.weight, V = m_.voxelVolume();
         const double alb[3] = {m_.albedo.r, m_.albedo.g, m_.albedo.b};
         for (int c = 0; c < 3; ++c) {
@@ -258,36 +261,46 @@ private:
         return s < 0 ? -2 : s;
     }
 
-    // Calls f(storage index, plane index) for the block voxels of tile (layer, tu, tv),
-    // in storage order.
-    template <class F>
-    void forTileVoxels(std::int32_t slot, int layer, int tu, int tv, F&& f) const {
+    // Plane offset of the sigma of (row cv, slice s of the layer, column cu).
+    size_t planeIndex(int cv, int s, int cu) const {
+        return (size_t(cv * K + s) * tnu_ + size_t(cu / K)) * kChunk + size_t(cu % K);
+    }
+
+    // Where tile (layer, tu, tv) lies in storage: the storage index of its first voxel,
+    // the strides along u, v and the sweep axis, and its extent inside the block.
+    struct TileWalk {
+        size_t base, sU, sV, sA;
+        int nU, nV, nA;
+    };
+    TileWalk tileWalk(std::int32_t slot, int layer, int tu, int tv) const {
         int t3[3];
         t3[g_.a] = layer;
         t3[g_.u] = tu;
         t3[g_.v] = tv;
-        const int N[3] = {m_.nx, m_.ny, m_.nz};
-        int c3[3];
-        for (int lz = 0; lz < K; ++lz)
-            for (int ly = 0; ly < K; ++ly)
-                for (int lx = 0; lx < K; ++lx) {
-                    c3[0] = t3[0] * K + lx;
-                    c3[1] = t3[1] * K + ly;
-                    c3[2] = t3[2] * K + lz;
-                    if (c3[0] >= N[0] || c3[1] >= N[1] || c3[2] >= N[2]) continue;
-                    const size_t x = slot >= 0 ? size_t(slot) * Medium::kTileVoxels + size_t(lx + K * (ly + K * lz))
-                                               : size_t(c3[0]) + size_t(N[0]) * (size_t(c3[1]) + size_t(N[1]) * c3[2]);
-                    const size_t p = size_t(c3[g_.u]) + size_t(g_.nuPad) * (size_t(c3[g_.v]) + size_t(g_.nv) * (c3[g_.a] - layer * K));
-                    f(x, p);
-                }
+        size_t stride[3];
+        TileWalk w;
+        if (slot >= 0) {
+            stride[0] = 1, stride[1] = K, stride[2] = K * K;
+            w.base = size_t(slot) * Medium::kTileVoxels;
+        } else {
+            stride[0] = 1, stride[1] = size_t(m_.nx), stride[2] = size_t(m_.nx) * m_.ny;
+            w.base = size_t(t3[0]) * K + stride[1] * size_t(t3[1] * K) + stride[2] * size_t(t3[2] * K);
+        }
+        w.sU = stride[g_.u];
+        w.sV = stride[g_.v];
+        w.sA = stride[g_.a];
+        w.nU = std::min(K, g_.nu - tu * K);
+        w.nV = std::min(K, g_.nv - tv * K);
+        w.nA = std::min(K, g_.na - layer * K);
+        return w;
     }
 
     // Fills the layer's planes over the span of allocated tiles of each tile row; returns
     // whether the layer holds any allocated tile.
     bool gather(int layer) {
-        const float sc[3] = {job_.srcScale.r, job_.srcScale.g, job_.srcScale.b};
+        const int tnv = (g_.nv + K - 1) / K;
         bool any = false;
-        for (int tv = 0; tv < tnv_; ++tv) {
+        for (int tv = 0; tv < tnv; ++tv) {
             int first = -1, last = -1;
             for (int tu = 0; tu < tnu_; ++tu)
                 if (tileSlot(layer, tu, tv) != -2) {
@@ -297,45 +310,67 @@ private:
             any = any || first >= 0;
             const int lo = first < 0 ? 0 : first * K, hi = first < 0 ? 0 : std::min(g_.nu, (last + 1) * K);
             for (int cv = tv * K; cv < std::min(g_.nv, (tv + 1) * K); ++cv) {
-                P_.spanLo[cv] = lo;
-                P_.spanHi[cv] = hi;
+                spanLo_[cv] = lo;
+                spanHi_[cv] = hi;
             }
-            for (int tu = std::max(first, 0); first >= 0 && tu <= last; ++tu) {
-                const std::int32_t slot = tileSlot(layer, tu, tv);
-                // An unallocated tile inside the span reads as empty: use dense indexing
-                // only to enumerate its plane positions.
-                forTileVoxels(slot == -2 ? -1 : slot, layer, tu, tv, [&](size_t x, size_t p) {
-                    for (int c = 0; c < 3; ++c) P_.dep[c][p] = 0.0f;
-                    const float s = slot == -2 ? 0.0f : m_.sigmaT[x];
-                    P_.sigma[p] = s;
-                    if (job_.src)
-                        for (int c = 0; c < 3; ++c)
-                            P_.q[c][p] = slot == -2 ? 0.0f : s * sc[c] * job_.src[x * job_.srcStride + c];
-                });
-            }
+            for (int tu = std::max(first, 0); first >= 0 && tu <= last; ++tu) gatherTile(layer, tu, tv);
         }
         return any;
+    }
+
+    // One tile into the planes; an unallocated tile inside a span reads as empty.
+    void gatherTile(int layer, int tu, int tv) {
+        const std::int32_t slot = tileSlot(layer, tu, tv);
+        const TileWalk w = tileWalk(slot == -2 ? -1 : slot, layer, tu, tv);
+        const float sc[3] = {job_.srcScale.r, job_.srcScale.g, job_.srcScale.b};
+        const float* sigma = m_.sigmaT.data();
+        const float* src = job_.src;
+        const size_t ss = job_.srcStride;
+        for (int s = 0; s < w.nA; ++s)
+            for (int lv = 0; lv < w.nV; ++lv) {
+                float* q = &P_[planeIndex(tv * K + lv, s, tu * K)];
+                if (slot == -2) {
+                    std::fill_n(q, kChunk, 0.0f);
+                    continue;
+                }
+                const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
+                for (int lu = 0; lu < w.nU; ++lu) {
+                    const size_t x = x0 + size_t(lu) * w.sU;
+                    const float sg = sigma[x];
+                    q[lu] = sg;
+                    for (int c = 0; c < 3; ++c) {
+                        q[(1 + c) * kLanes + lu] = src ? sg * sc[c] * src[x * ss + c] : 0.0f;
+                        q[(4 + c) * kLanes + lu] = 0.0f;
+                    }
+                }
+            }
     }
 
     // Adds the layer's deposits to phi (allocated voxels only) and tallies them (float sums
     // per tile, added in double).
     void scatter(int layer, float* phi) {
         const float k = float(g_.aPerp) * depositScale_;
-        for (int tv = 0; tv < tnv_; ++tv)
+        const int tnv = (g_.nv + K - 1) / K;
+        for (int tv = 0; tv < tnv; ++tv)
             for (int tu = 0; tu < tnu_; ++tu) {
                 const std::int32_t slot = tileSlot(layer, tu, tv);
                 if (slot == -2) continue;
+                const TileWalk w = tileWalk(slot, layer, tu, tv);
                 float sca[3] = {0, 0, 0}, src[3] = {0, 0, 0};
-                forTileVoxels(slot, layer, tu, tv, [&](size_t x, size_t p) {
-                    const float s = P_.sigma[p];
-                    for (int c = 0; c < 3; ++c) {
-                        const float d = P_.dep[c][p];
-                        phi[x * 3 + c] += k * d;
-                        sca[c] += s * d;
+                for (int s = 0; s < w.nA; ++s)
+                    for (int lv = 0; lv < w.nV; ++lv) {
+                        const float* q = &P_[planeIndex(tv * K + lv, s, tu * K)];
+                        const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
+                        for (int lu = 0; lu < w.nU; ++lu) {
+                            float* ph = &phi[(x0 + size_t(lu) * w.sU) * 3];
+                            for (int c = 0; c < 3; ++c) {
+                                const float d = q[(4 + c) * kLanes + lu];
+                                ph[c] += k * d;
+                                sca[c] += q[lu] * d;
+                                src[c] += q[(1 + c) * kLanes + lu];
+                            }
+                        }
                     }
-                    if (job_.src)
-                        for (int c = 0; c < 3; ++c) src[c] += P_.q[c][p];
-                });
                 for (int c = 0; c < 3; ++c) {
                     sca_[c] += sca[c];
                     injSrc_[c] += src[c];
@@ -348,26 +383,27 @@ private:
     void sweepSlice(int ia, bool any) {
         const int r = g_.r;
         for (int j = 0; j < r; ++j) {
-            SV_[j] = int(wrap(stV_[j].S, g_.nv));
+            SV_[j] = wrap(stV_[j].S, g_.nv);
             crossings(stU_[j], g_.du, lamU_[j]);
             crossings(stV_[j], g_.dv, lamV_[j]);
         }
         for (int jv = 0; jv < r; ++jv)
             for (int ju = 0; ju < r; ++ju) mergeEvents(lamU_[ju], lamV_[jv], g_.sliceLen, ev_[size_t(jv * r + ju)]);
-        sliceOffset_ = size_t(ia % K) * plane_;
+        slice_ = ia % K;
         for (int cellV = 0; cellV < g_.nv; ++cellV)
-            for (int jv = 0; jv < r; ++jv)
-                for (int ju = 0; ju < r; ++ju) {
-                    const size_t cls = size_t(jv * r + ju) * plane_;
-                    processRow(cls + size_t(cellV) * g_.nuPad, cellV, SV_[jv], ev_[size_t(jv * r + ju)], any);
-                }
+            for (int cls = 0; cls < r * r; ++cls) {
+                const size_t row = (size_t(cellV) * r * r + size_t(cls)) * rowStride_;
+                processRow(row, cellV, SV_[cls / r], ev_[size_t(cls)], any);
+            }
     }
 
-    // Ray radiance at index i leaves the block: tallied as escaped, replaced by the boundary.
-    void resetRay(size_t i) {
+    // Ray `lane` of ray row `row` leaves the block: tallied as escaped, replaced by the boundary.
+    void resetRay(size_t row, int lane) {
+        const size_t nuPad = rowStride_ / 3;
         for (int c = 0; c < 3; ++c) {
-            esc_[c] += L_[c][i];
-            L_[c][i] = bnd_[c];
+            float& L = L_[row + c * nuPad + size_t(lane)];
+            esc_[c] += L;
+            L = bnd_[c];
             inj_[c] += bnd_[c];
         }
     }
@@ -376,18 +412,15 @@ private:
     // one leaving the block re-enters at the opposite face with the boundary radiance.
     void shiftRow(size_t row) {
         const int nu = g_.nu;
-        if (g_.su > 0) {
-            resetRay(row + size_t(nu - 1));
-            for (int c = 0; c < 3; ++c) {
-                float* L = &L_[c][row];
+        const size_t nuPad = rowStride_ / 3;
+        resetRay(row, g_.su > 0 ? nu - 1 : 0);
+        for (int c = 0; c < 3; ++c) {
+            float* L = &L_[row + c * nuPad];
+            if (g_.su > 0) {
                 const float in = L[nu - 1];
                 std::memmove(L + 1, L, sizeof(float) * size_t(nu - 1));
                 L[0] = in;
-            }
-        } else {
-            resetRay(row);
-            for (int c = 0; c < 3; ++c) {
-                float* L = &L_[c][row];
+            } else {
                 const float in = L[0];
                 std::memmove(L, L + 1, sizeof(float) * size_t(nu - 1));
                 L[nu - 1] = in;
@@ -395,8 +428,8 @@ private:
         }
     }
 
-    // Applies one class's events in slice order to the rays of one row (ray index `row`,
-    // lane = column); SV: the class's row shift at slice start, in [0, nv).
+    // Applies one class's events in slice order to one ray row; SV: the class's row shift
+    // at slice start, in [0, nv).
     void processRow(size_t row, int cellV, int SV, const std::vector<Event>& ev, bool any) {
         const int nu = g_.nu, nv = g_.nv;
         int vr = cellV + SV;  // the voxel row the rays are in
@@ -408,40 +441,34 @@ private:
             }
             if (e.kind == 2) {  // the whole row moves to the next voxel row, or leaves the block
                 if (vr == (g_.sv > 0 ? nv - 1 : 0))
-                    for (int i = 0; i < nu; ++i) resetRay(row + size_t(i));
+                    for (int i = 0; i < nu; ++i) resetRay(row, i);
                 vr += g_.sv;
                 vr = vr < 0 ? nv - 1 : (vr >= nv ? 0 : vr);
                 continue;
             }
             if (!any) continue;  // the slice lies in empty tiles: rays cross it unchanged
-            const int lo = P_.spanLo[vr], hi = P_.spanHi[vr];
+            const int lo = spanLo_[vr], hi = spanHi_[vr];
             if (lo >= hi) continue;  // the voxel row lies in empty tiles
             // lo is tile-aligned; hi rounds up into the padding columns (sigma = 0 there).
-            segment(e.len, vr, lo, (hi + 7) / 8 * 8, row);
+            const int chunks = (hi - lo + K - 1) / K;
+            float* plane = &P_[planeIndex(vr, slice_, lo)];
+            if (job_.src)
+                segmentChunks<true>(chunks, float(e.len), plane, &L_[row + size_t(lo)], rowStride_ / 3);
+            else
+                segmentChunks<false>(chunks, float(e.len), plane, &L_[row + size_t(lo)], rowStride_ / 3);
+            segs_ += std::uint64_t(hi - lo);
         }
-    }
-
-    // One segment for the rays over columns [c0, c1) of voxel row vr of ray row `row`.
-    void segment(double len, int vr, int c0, int c1, size_t row) {
-        const size_t p = sliceOffset_ + size_t(vr) * g_.nuPad + c0, ray = row + size_t(c0);
-        float *L0 = &L_[0][ray], *L1 = &L_[1][ray], *L2 = &L_[2][ray];
-        float *d0 = &P_.dep[0][p], *d1 = &P_.dep[1][p], *d2 = &P_.dep[2][p];
-        if (job_.src)
-            segmentRun<true>(c1 - c0, float(len), &P_.sigma[p], &P_.q[0][p], &P_.q[1][p], &P_.q[2][p], L0, L1, L2, d0,
-                             d1, d2);
-        else
-            segmentRun<false>(c1 - c0, float(len), &P_.sigma[p], nullptr, nullptr, nullptr, L0, L1, L2, d0, d1, d2);
-        segs_ += std::uint64_t(std::min(c1, g_.nu) - c0);
     }
 
     const Medium& m_;
     const Job& job_;
     const Geometry g_;
     const float depositScale_;
-    size_t plane_ = 0, sliceOffset_ = 0;
-    int tnu_ = 0, tnv_ = 0;
-    std::vector<float> L_[3];  // ray radiance, [class][cell v][column]; columns >= nu are padding
-    LayerPlanes P_;
+    int tnu_ = 0, slice_ = 0;
+    size_t rowStride_ = 0;
+    std::vector<float> L_;  // ray radiance
+    std::vector<float> P_;  // the current tile layer
+    std::vector<int> spanLo_, spanHi_;  // per voxel row: columns in allocated tiles (tile-granular)
     std::vector<ClassState> stU_, stV_;
     std::vector<double> lamU_[16], lamV_[16];  // this slice's crossings per class (r <= 16)
     int SV_[16] = {};
