@@ -127,7 +127,8 @@ void writeStats(const BakeOptions& o, const BakeSummary& s, const LpmResult* r) 
             const PassStats& p = r->passes[i];
             j << (i ? "," : "") << "\n    {\"pass\": " << p.pass << ", \"injected\": " << p.injected
               << ", \"scattered\": " << p.scattered << ", \"absorbed\": " << p.absorbed << ", \"escaped\": "
-              << p.escaped << ", \"seconds\": " << p.seconds << "}";
+              << p.escaped << ", \"seconds\": " << p.seconds << ", \"krylov\": " << (p.krylov ? "true" : "false")
+              << ", \"coarse\": " << (p.coarse ? "true" : "false") << "}";
         }
     j << "\n  ],\n  \"decisions\": [";
     if (r)
@@ -339,6 +340,8 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     dbl("tolerance", o.solver.tolerance);
     i32("max_orders", o.solver.maxOrders);
     i32("subdivide", o.solver.subdivide);
+    str("multires", o.solver.multires < 0 ? "auto" : (o.solver.multires ? "on" : "off"));
+    i32("multires_after", o.solver.multiresAfter);
     str("source_shape", o.solver.linearSource < 0 ? "auto" : (o.solver.linearSource ? "linear" : "constant"));
     str("delta_m", o.solver.deltaM < 0 ? "auto" : (o.solver.deltaM ? "on" : "off"));
     dbl("env_hot_share", o.solver.envHotShare);

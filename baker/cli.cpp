@@ -177,7 +177,7 @@ int runCli(int argc, char** argv) {
     std::vector<std::string> suns, sunIrr;
     std::vector<double> sunAngle;
     bool noKrylov = false;
-    std::string sourceShape = "auto", deltaM = "auto";
+    std::string sourceShape = "auto", deltaM = "auto", multires = "auto";
     std::string solveScale = "1";
 
     app.add_option("input", b.input, "input OpenVDB file (positional)");
@@ -240,6 +240,17 @@ int runCli(int argc, char** argv) {
     app.add_option("--subdivide", b.solver.subdivide,
                    "solve on voxels split k x k x k and average back (1..8): for optically thick voxels")
         ->default_val(b.solver.subdivide)->group(gS);
+    app.add_option("--multires", multires,
+                   "solve the higher scattering orders on a 2x coarser grid: auto (when the block stores at least "
+                   "262144 voxels), on, off (docs/multires.md)")
+        ->default_val("auto")
+        ->check(CLI::IsMember({"auto", "on", "off"}))
+        ->group(gS);
+    app.add_option("--multires-after", b.solver.multiresAfter,
+                   "scattering passes at full resolution before the coarse grid takes over")
+        ->default_val(b.solver.multiresAfter)
+        ->check(CLI::Range(1, 1000))
+        ->group(gS);
     app.add_option("--source", sourceShape,
                    "source inside a voxel: auto (linear when a voxel is thicker than optical depth 2), constant, "
                    "linear (linear characteristics: leaks far less light through thick voxels, ~5x the time)")
@@ -316,6 +327,7 @@ int runCli(int argc, char** argv) {
     if (noKrylov) b.solver.krylov = false;
     b.solver.linearSource = sourceShape == "linear" ? 1 : (sourceShape == "constant" ? 0 : -1);
     b.solver.deltaM = deltaM == "on" ? 1 : (deltaM == "off" ? 0 : -1);
+    b.solver.multires = multires == "on" ? 1 : (multires == "off" ? 0 : -1);
     Log log;
     log.verbosity = quiet ? 0 : 1 + verbose;
     try {

@@ -15,6 +15,7 @@
 #include <cstring>
 #include <limits>
 
+#include "core/multires.h"
 #include "core/parallel.h"
 #include "core/quadrature.h"
 #include "core/sweep.h"
@@ -63,8 +64,11 @@ Medium subdivided(const Medium& m, int k) {
 }  // namespace
 
 // gOut: the asymmetry of the phase function that S is defined with (differs from m.g when
-// m is the delta-M-scaled medium).
-static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSettings& s, double gOut) {
+// m is the delta-M-scaled medium). initialSource: null for the external-light problem; for
+// the coarse continuation of multi-resolution, the restricted unshot [voxel][bin][rgb] that
+// replaces pass 0 (no external light).
+static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSettings& s, double gOut,
+                           const std::vector<float>* initialSource = nullptr) {
     const auto t0 = Clock::now();
     m.validate();
     if (s.subdivide < 1 || s.subdivide > 8)
@@ -107,6 +111,10 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
     if (s.shOrder < 0 || s.shOrder > kMaxShOrder)
         throw Error("LPM", "SH order must be in 0..3, got " + std::to_string(s.shOrder));
     if (!(s.tolerance > 0)) throw Error("LPM", "tolerance must be positive, got " + std::to_string(s.tolerance));
+    if (s.multires < -1 || s.multires > 1)
+        throw Error("LPM", "multi-resolution must be -1 (auto), 0 or 1, got " + std::to_string(s.multires));
+    if (s.multiresAfter < 1)
+        throw Error("LPM", "full-resolution passes before the coarse grid must be >= 1, got " + std::to_string(s.multiresAfter));
     if (s.maxOrders < 1) throw Error("LPM", "max orders must be at least 1, got " + std::to_string(s.maxOrders));
     for (const Sun& sun : lights.suns) {
         if (!(length(sun.toSun) > 0)) throw Error("LPM", "sun direction must be non-zero");
@@ -254,9 +262,9 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
             for (int c = 0; c < 3; ++c) envBin[i][c] = om > 0 ? float(acc[size_t(i) * 4 + c] / om) : 0.0f;
         }
     } else {
-        res.decisions.push_back("no environment pass: no environment light");
+        if (!initialSource) res.decisions.push_back("no environment pass: no environment light");
     }
-    if (!m.hasEmission()) res.decisions.push_back("no emission source: no emission grid");
+    if (!m.hasEmission() && !initialSource) res.decisions.push_back("no emission source: no emission grid");
 
     // Fold coefficients for LPM directions.
     auto makeJob = [&](int i) {
@@ -421,8 +429,22 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         }
     };
 
-    // Pass 0: external light (environment through the boundary, emission, suns).
-    {
+    // Pass 0: external light (environment through the boundary, emission, suns), or the
+    // restricted source of a coarse continuation.
+    if (initialSource) {
+        double power = 0;
+        for (size_t x = 0; x < N; ++x)
+            for (int d = 0; d < nb; ++d)
+                for (int c = 0; c < 3; ++c) {
+                    const float u = (*initialSource)[(x * nb + d) * 3 + c];
+                    next[(x * nb + d) * M * 3 + c] = u;
+                    power += double(u) * m.sigmaT[x] * m.albedo[c] * ff.binWeight(d) * V;
+                }
+        res.injected = power / 3.0;
+        PassStats ps;
+        ps.injected = ps.scattered = res.injected;
+        res.passes.push_back(ps);
+    } else {
         const auto tp = Clock::now();
         std::vector<Job> jobs;
         if (hasEnv || m.hasEmission()) {
@@ -481,6 +503,60 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
     // Passes 1..: propagate what the previous pass scattered (source iteration). When
     // the per-pass energy ratio shows that plain iteration would need many more passes
     // (albedo near 1, thick media), switch to GMRES on the remaining sum.
+    // Multi-resolution: the orders from coarseFrom on are solved on a grid twice as coarse
+    // (docs/multires.md) and their S is interpolated back.
+    int coarseFrom = 0;
+    bool coarseDone = false;
+    if (!initialSource && s.multires != 0) {
+        const bool big = N >= size_t(s.multiresMinVoxels);
+        const bool fits = m.nx >= 4 && m.ny >= 4 && m.nz >= 4;
+        if (fits && (s.multires == 1 || big)) coarseFrom = s.multiresAfter + 1;
+        char buf[240];
+        if (coarseFrom > 0)
+            std::snprintf(buf, sizeof buf, "multi-resolution: orders >= %d on a 2x coarser grid (%zu stored voxels%s)",
+                          coarseFrom, N, s.multires == 1 ? ", requested" : "");
+        else
+            std::snprintf(buf, sizeof buf, "full resolution for every order: %s",
+                          !fits ? "the block is under 4 voxels along an axis"
+                                : (std::to_string(N) + " stored voxels < " + std::to_string(s.multiresMinVoxels)).c_str());
+        res.decisions.push_back(buf);
+    }
+    auto continueOnCoarse = [&](int firstPass) {
+        const auto tp = Clock::now();
+        const Medium mc = coarsen(m);
+        const std::vector<float> uc = restrictSource(m, mc, next, nb, M);
+        LpmSettings cs = s;
+        cs.multires = 0;
+        cs.binsPerFace = binsPerFace;  // the restricted source is in these bins
+        const int n = s.directionsPerFace, half = n / 2;
+        cs.directionsPerFace =
+            s.multiresDirections > 0 ? s.multiresDirections
+                                     : (half >= 2 && (binsPerFace == 0 || half % binsPerFace == 0) ? half : n);
+        cs.maxOrders = std::max(1, s.maxOrders - firstPass + 1);
+        const double sourcePower = res.passes.back().scattered;
+        cs.tolerance = sourcePower > 0 ? s.tolerance * res.injected / sourcePower : s.tolerance;
+        LpmResult cr = solveImpl(mc, Lights{}, cs, gOut, &uc);
+        prolongAdd(m, mc, cr.sh, nc, res.sh);
+        for (size_t i = 1; i < cr.passes.size(); ++i) {
+            PassStats p = cr.passes[i];
+            p.pass = firstPass + int(i) - 1;
+            p.coarse = true;
+            res.passes.push_back(p);
+        }
+        res.absorbed += cr.absorbed;
+        res.escaped += cr.escaped;
+        res.segments += cr.segments;
+        res.converged = cr.converged;
+        for (const std::string& d : cr.decisions) res.decisions.push_back("coarse grid: " + d);
+        char buf[240];
+        std::snprintf(buf, sizeof buf,
+                      "coarse grid %dx%dx%d, %d directions per face, %zu passes, %.2f s (restriction, solve, "
+                      "interpolation)",
+                      mc.nx, mc.ny, mc.nz, cs.directionsPerFace, cr.passes.size() - 1, secondsSince(tp));
+        res.decisions.push_back(buf);
+        coarseDone = true;
+    };
+
     int pass = 1;
     bool useKrylov = false;
     for (;; ++pass) {
@@ -495,6 +571,10 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
             break;
         }
         if (pass >= s.maxOrders) break;
+        if (coarseFrom > 0 && pass == coarseFrom) {
+            continueOnCoarse(pass);
+            break;
+        }
         if (s.krylov && pass >= 4) {
             const double prev = res.passes[res.passes.size() - 2].scattered;
             const double rho = prev > 0 ? last / prev : 0.0;
@@ -520,7 +600,7 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         recordPass(pass, t, tp);
     }
 
-    if (useKrylov) {
+    if (useKrylov && !coarseDone) {
         // Remaining sum X = sum_{j >= 1} U_{k+j} solves (I - K) X = B, B = `next`, where K
         // is one propagation pass (source -> next unshot). Restarted GMRES with modified
         // Gram-Schmidt in the inner product <a, b> = sum_d w_d a.b; every reduction is

@@ -35,6 +35,12 @@ struct LpmSettings {
     double deltaMAbove = 0.0;   ///< auto threshold on g (measured better for g = 0.5, 0.85, 0.9, 0.99)
     double envHotShare = 0.01;  ///< environment pixels holding at least this share of its power
                                 ///< (at most 16) are swept like suns, in their exact direction; 0 = off
+    int multires = -1;          ///< higher orders on a 2x coarser grid: -1 auto (when the block stores
+                                ///< at least multiresMinVoxels voxels), 0 off, 1 on
+    int multiresAfter = 1;      ///< passes at full resolution before the coarse grid takes over (>= 1)
+    int multiresMinVoxels = 1 << 18;  ///< auto threshold on stored voxels (64^3)
+    int multiresDirections = -1;  ///< directions per face on the coarse grid: -1 auto (n/2 when the
+                                  ///< bins still divide it and it is >= 2, else n)
     int subdivide = 1;          ///< solve on voxels split k x k x k (same medium), average back: for
                                 ///< optically thick voxels, where a voxel-constant source leaks light
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass
@@ -48,6 +54,7 @@ struct PassStats {
     double scattered = 0;    ///< power scattered in this pass: the next pass's source
     double seconds = 0;
     bool krylov = false;     ///< a GMRES matrix-vector pass (not a physical scattering order)
+    bool coarse = false;     ///< solved on the multi-resolution coarse grid
 };
 
 struct LpmResult {
