@@ -521,10 +521,18 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
                                 : (std::to_string(N) + " stored voxels < " + std::to_string(s.multiresMinVoxels)).c_str());
         res.decisions.push_back(buf);
     }
+    // Two-grid continuation (docs/multires.md). The remaining sum X of sources solves
+    // X = B + K X (B = the current source `next`, K one fine pass). A cycle restricts the
+    // source r still to be distributed (first B) to the coarse grid, iterates the orders
+    // there, and takes E = r + (coarse sum of the sources it propagated beyond r, injected
+    // piecewise constant, which keeps its power) as the sum r gives rise to. One fine pass
+    // of E deposits S at full resolution; its new residual r' = r + K E - E = K E - tail is
+    // what the coarse grid got wrong, and the next cycle distributes it, until its power
+    // falls below the tolerance (at most kCycles cycles).
     auto continueOnCoarse = [&](int firstPass) {
+        constexpr int kCycles = 3;
         const auto tp = Clock::now();
         const Medium mc = coarsen(m);
-        const std::vector<float> uc = restrictSource(m, mc, next, nb, M);
         LpmSettings cs = s;
         cs.multires = 0;
         cs.binsPerFace = binsPerFace;  // the restricted source is in these bins
@@ -532,29 +540,84 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         cs.directionsPerFace =
             s.multiresDirections > 0 ? s.multiresDirections
                                      : (half >= 2 && (binsPerFace == 0 || half % binsPerFace == 0) ? half : n);
-        cs.maxOrders = std::max(1, s.maxOrders - firstPass + 1);
-        const double sourcePower = res.passes.back().scattered;
-        cs.tolerance = sourcePower > 0 ? s.tolerance * res.injected / sourcePower : s.tolerance;
-        LpmResult cr = solveImpl(mc, Lights{}, cs, gOut, &uc);
-        prolongAdd(m, mc, cr.sh, nc, res.sh);
-        for (size_t i = 1; i < cr.passes.size(); ++i) {
-            PassStats p = cr.passes[i];
-            p.pass = firstPass + int(i) - 1;
-            p.coarse = true;
-            res.passes.push_back(p);
+        auto power = [&](const std::vector<float>& u) {  // source power of [voxel][bin][moment][rgb]
+            double p = 0;
+            for (size_t v = 0; v < N; ++v)
+                for (int d = 0; d < nb; ++d)
+                    for (int c = 0; c < 3; ++c)
+                        p += double(u[(v * nb + d) * M * 3 + c]) * m.sigmaT[v] * m.albedo[c] * ff.binWeight(d) * V;
+            return p / 3.0;
+        };
+        std::vector<float> r = next, E, tail(next.size());
+        int cycles = 0, coarsePasses = 0, p = firstPass;
+        double rPower = res.passes.back().scattered;
+        bool coarseConverged = true;
+        for (; cycles < kCycles && p < s.maxOrders; ++cycles) {
+            const std::vector<float> uc = restrictSource(m, mc, r, nb, M);
+            cs.maxOrders = std::max(1, s.maxOrders - p);
+            cs.tolerance = std::fabs(rPower) > 0 ? s.tolerance * res.injected / std::fabs(rPower) : s.tolerance;
+            const LpmResult cr = solveImpl(mc, Lights{}, cs, gOut, &uc);
+            for (size_t i = 1; i < cr.passes.size(); ++i) {
+                PassStats ps = cr.passes[i];
+                ps.pass = p++;
+                ps.coarse = true;
+                res.passes.push_back(ps);
+            }
+            coarsePasses += int(cr.passes.size()) - 1;
+            coarseConverged = coarseConverged && cr.converged;
+            res.segments += cr.segments;
+            if (cycles == 0)
+                for (const std::string& d : cr.decisions) res.decisions.push_back("coarse grid: " + d);
+            // tail = coarse sources beyond r, at each fine voxel its coarse parent's value.
+            std::fill(tail.begin(), tail.end(), 0.0f);
+            parallelForChunks(N, 4096, [&](size_t vb, size_t ve) {
+                for (size_t v = vb; v < ve; ++v) {
+                    int x, y, z;
+                    m.coord(v, x, y, z);
+                    if (x < 0 || x >= m.nx || y >= m.ny || z >= m.nz) continue;
+                    const size_t cv = mc.index(x / 2, y / 2, z / 2);
+                    if (cv == Medium::npos) continue;
+                    for (int d = 0; d < nb; ++d)
+                        for (int c = 0; c < 3; ++c) {
+                            const size_t ci = (cv * nb + d) * 3 + c;
+                            tail[(v * nb + d) * M * 3 + c] = cr.sourceSum[ci] - uc[ci];
+                        }
+                }
+            });
+            E = r;
+            for (size_t i = 0; i < E.size(); ++i) E[i] += tail[i];
+            const auto tf = Clock::now();
+            std::fill(next.begin(), next.end(), 0.0f);
+            Tally t;
+            runJobsAny(sourceJobs(E), t, true, next);
+            recordPass(p++, t, tf);
+            for (size_t i = 0; i < r.size(); ++i) r[i] = next[i] - tail[i];
+            rPower = power(r);
+            res.passes.back().scattered = std::fabs(rPower);
+            if (std::fabs(rPower) <= s.tolerance * res.injected) {
+                ++cycles;
+                break;
+            }
         }
-        res.absorbed += cr.absorbed;
-        res.escaped += cr.escaped;
-        res.segments += cr.segments;
-        res.converged = cr.converged;
-        for (const std::string& d : cr.decisions) res.decisions.push_back("coarse grid: " + d);
-        char buf[240];
+        res.converged = coarseConverged && std::fabs(rPower) <= s.tolerance * res.injected;
+        char buf[300];
         std::snprintf(buf, sizeof buf,
-                      "coarse grid %dx%dx%d, %d directions per face, %zu passes, %.2f s (restriction, solve, "
-                      "interpolation)",
-                      mc.nx, mc.ny, mc.nz, cs.directionsPerFace, cr.passes.size() - 1, secondsSince(tp));
+                      "two-grid: coarse grid %dx%dx%d with %d directions per face, %d cycle(s) of coarse orders and "
+                      "one fine pass, %d coarse passes; source left %.3g of the input; %.2f s",
+                      mc.nx, mc.ny, mc.nz, cs.directionsPerFace, cycles, coarsePasses,
+                      res.injected > 0 ? std::fabs(rPower) / res.injected : 0.0, secondsSince(tp));
         res.decisions.push_back(buf);
         coarseDone = true;
+    };
+
+    // Coarse continuation: the sum of every propagated source (means), for the fine pass.
+    if (initialSource) res.sourceSum.assign(N * size_t(nb) * 3, 0.0f);
+    auto addToSourceSum = [&](const std::vector<float>& src) {
+        if (!initialSource) return;
+        parallelForChunks(N * size_t(nb), 4096, [&](size_t b, size_t e) {
+            for (size_t i = b; i < e; ++i)
+                for (int c = 0; c < 3; ++c) res.sourceSum[i * 3 + c] += src[i * M * 3 + c];
+        });
     };
 
     int pass = 1;
@@ -595,10 +658,12 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         const auto tp = Clock::now();
         std::swap(unshot, next);
         std::fill(next.begin(), next.end(), 0.0f);
+        addToSourceSum(unshot);
         Tally t;
         runJobsAny(sourceJobs(unshot), t, true, next);
         recordPass(pass, t, tp);
     }
+    if (!useKrylov && !coarseDone) addToSourceSum(next);  // the remainder that was not propagated
 
     if (useKrylov && !coarseDone) {
         // Remaining sum X = sum_{j >= 1} U_{k+j} solves (I - K) X = B, B = `next`, where K
@@ -708,6 +773,7 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         // Final physical pass: deposit S from the whole remaining sum.
         const auto tp = Clock::now();
         std::fill(next.begin(), next.end(), 0.0f);
+        addToSourceSum(X);
         Tally t;
         runJobsAny(sourceJobs(X), t, true, next);
         recordPass(pass, t, tp);

@@ -72,6 +72,9 @@ struct LpmResult {
     std::uint64_t segments = 0;  ///< ray-segment updates performed
     double seconds = 0;
     std::vector<std::string> decisions;  ///< what the solver decided and why
+    /// Coarse continuation only (internal to multi-resolution): every source the passes
+    /// propagated, plus the unshot remainder, [voxel][bin][rgb].
+    std::vector<float> sourceSum;
 
     RGB coeff(size_t voxel, int k) const {
         const float* p = &sh[(voxel * coeffs + k) * 3];
