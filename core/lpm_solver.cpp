@@ -548,7 +548,7 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
                         p += double(u[(v * nb + d) * M * 3 + c]) * m.sigmaT[v] * m.albedo[c] * ff.binWeight(d) * V;
             return p / 3.0;
         };
-        std::vector<float> r = next, E, tail(next.size());
+        std::vector<float> r = next, E, tail(next.size(), 0.0f);  // slopes of the tail stay 0
         int cycles = 0, coarsePasses = 0, p = firstPass;
         double rPower = res.passes.back().scattered;
         bool coarseConverged = true;
@@ -569,21 +569,9 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
             if (cycles == 0)
                 for (const std::string& d : cr.decisions) res.decisions.push_back("coarse grid: " + d);
             // tail = coarse sources beyond r, at each fine voxel its coarse parent's value.
-            std::fill(tail.begin(), tail.end(), 0.0f);
-            parallelForChunks(N, 4096, [&](size_t vb, size_t ve) {
-                for (size_t v = vb; v < ve; ++v) {
-                    int x, y, z;
-                    m.coord(v, x, y, z);
-                    if (x < 0 || x >= m.nx || y >= m.ny || z >= m.nz) continue;
-                    const size_t cv = mc.index(x / 2, y / 2, z / 2);
-                    if (cv == Medium::npos) continue;
-                    for (int d = 0; d < nb; ++d)
-                        for (int c = 0; c < 3; ++c) {
-                            const size_t ci = (cv * nb + d) * 3 + c;
-                            tail[(v * nb + d) * M * 3 + c] = cr.sourceSum[ci] - uc[ci];
-                        }
-                }
-            });
+            std::vector<float> tailCoarse = cr.sourceSum;
+            for (size_t i = 0; i < tailCoarse.size(); ++i) tailCoarse[i] -= uc[i];
+            injectCoarse(m, mc, tailCoarse, nb, M, tail);
             E = r;
             for (size_t i = 0; i < E.size(); ++i) E[i] += tail[i];
             const auto tf = Clock::now();

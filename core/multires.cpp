@@ -82,38 +82,18 @@ std::vector<float> restrictSource(const Medium& f, const Medium& c, const std::v
     return out;
 }
 
-void prolongAdd(const Medium& f, const Medium& c, const std::vector<float>& coarseSh, int coeffs,
-                std::vector<float>& fineSh) {
-    const size_t per = size_t(coeffs) * 3;
+void injectCoarse(const Medium& f, const Medium& c, const std::vector<float>& coarseSource, int bins, int moments,
+                  std::vector<float>& out) {
     parallelForChunks(f.voxelCount(), 4096, [&](size_t vb, size_t ve) {
-        std::vector<double> acc(per);
         for (size_t v = vb; v < ve; ++v) {
             int x, y, z;
             f.coord(v, x, y, z);
-            if (x < 0 || x >= f.nx || y >= f.ny || z >= f.nz) continue;
-            // Fine centre x + 1/2 sits at coarse coordinate (x + 1/2)/2 - 1/2 in centre units.
-            const double p[3] = {0.5 * x - 0.25, 0.5 * y - 0.25, 0.5 * z - 0.25};
-            int i0[3];
-            double w1[3];
-            for (int a = 0; a < 3; ++a) {
-                i0[a] = int(std::floor(p[a]));
-                w1[a] = p[a] - i0[a];
-            }
-            std::fill(acc.begin(), acc.end(), 0.0);
-            double wsum = 0;
-            for (int k = 0; k < 8; ++k) {
-                const int cx = i0[0] + (k & 1), cy = i0[1] + ((k >> 1) & 1), cz = i0[2] + (k >> 2);
-                if (cx < 0 || cy < 0 || cz < 0 || cx >= c.nx || cy >= c.ny || cz >= c.nz) continue;
-                const size_t ci = c.index(cx, cy, cz);
-                if (ci == Medium::npos) continue;
-                const double w = (k & 1 ? w1[0] : 1 - w1[0]) * ((k >> 1) & 1 ? w1[1] : 1 - w1[1]) *
-                                 (k >> 2 ? w1[2] : 1 - w1[2]);
-                if (w <= 0) continue;
-                wsum += w;
-                for (size_t i = 0; i < per; ++i) acc[i] += w * coarseSh[ci * per + i];
-            }
-            if (wsum <= 0) continue;
-            for (size_t i = 0; i < per; ++i) fineSh[v * per + i] += float(acc[i] / wsum);
+            const bool inside = x >= 0 && x < f.nx && y < f.ny && z < f.nz;
+            const size_t cv = inside ? c.index(x / 2, y / 2, z / 2) : Medium::npos;
+            for (int d = 0; d < bins; ++d)
+                for (int ch = 0; ch < 3; ++ch)
+                    out[(v * bins + d) * size_t(moments) * 3 + ch] =
+                        cv == Medium::npos ? 0.0f : coarseSource[(cv * bins + d) * 3 + ch];
         }
     });
 }

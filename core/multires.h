@@ -1,13 +1,15 @@
 // Multi-resolution transfer for the higher scattering orders (docs/multires.md).
 //
 // After the first orders are solved on the full grid, what remains to be scattered is
-// smooth in space: lpmbake solves the remaining orders on a grid twice as coarse per axis
-// (1/8 of the voxels) and adds their S back, interpolated, to the full-resolution result.
+// smooth in space: lpmbake iterates the remaining orders on a grid twice as coarse per axis
+// (1/8 of the voxels) and brings the sum of their sources back to the full grid.
 //   coarsen:        sigma_t of a coarse voxel = the mean of its 8 children (optical mass kept)
 //   restrictSource: U_c = sum sigma_f U_f / sum sigma_f per bin and channel, so the source
 //                   power sigma_s U V of every coarse voxel equals that of its children
-//   prolongAdd:     S_fine += trilinear interpolation of S_coarse at fine voxel centres,
-//                   over stored coarse voxels only (weights renormalised at sparse borders)
+//   injectCoarse:   a coarse source back on the fine grid, each fine voxel its coarse
+//                   parent's value: with sigma_c = the mean of the children, the power
+//                   sigma_s U V of every coarse voxel is kept exactly
+// The solver uses them in a two-grid iteration (core/lpm_solver.cpp, continueOnCoarse).
 #pragma once
 
 #include <vector>
@@ -26,8 +28,10 @@ Medium coarsen(const Medium& fine);
 std::vector<float> restrictSource(const Medium& fine, const Medium& coarse, const std::vector<float>& fineSource,
                                   int bins, int moments);
 
-/// fineSh [fine voxel][coeff][rgb] += trilinear interpolation of coarseSh [coarse voxel][coeff][rgb].
-void prolongAdd(const Medium& fine, const Medium& coarse, const std::vector<float>& coarseSh, int coeffs,
-                std::vector<float>& fineSh);
+/// Writes the coarse source [coarse voxel][bin][rgb] into out [fine voxel][bin][moment][rgb]
+/// (means; moments M, slopes left as they are): each fine voxel gets its parent's value,
+/// 0 outside the block or under an unallocated coarse tile.
+void injectCoarse(const Medium& fine, const Medium& coarse, const std::vector<float>& coarseSource, int bins,
+                  int moments, std::vector<float>& out);
 
 }  // namespace lpm
