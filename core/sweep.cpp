@@ -207,6 +207,7 @@ public:
         const size_t nuPad = size_t(tnu_) * K;
         rowStride_ = 3 * nuPad;
         L_.assign(size_t(r) * r * g_.nv * rowStride_, 0.0f);
+        pending_.assign(size_t(r) * r * g_.nv, 0);
         for (int c = 0; c < 3; ++c) {
             bnd_[c] = (&job.boundary.r)[c];
             inj_[c] = double(bnd_[c]) * double(size_t(r) * r * g_.nu * g_.nv);  // padding lanes excluded
@@ -234,6 +235,7 @@ public:
             if (any) scatter(layer, phi);
         }
         const size_t nuPad = rowStride_ / 3;
+        for (size_t row = 0; row < L_.size(); row += rowStride_) applyShift(row);
         for (size_t row = 0; row < L_.size(); row += rowStride_)
             for (int c = 0; c < 3; ++c)
                 for (int i = 0; i < g_.nu; ++i) esc_[c] += L_[row + c * nuPad + size_t(i)];
@@ -408,23 +410,25 @@ private:
         }
     }
 
-    // A u crossing of a row of rays kept in column order: every ray moves one column, the
-    // one leaving the block re-enters at the opposite face with the boundary radiance.
-    void shiftRow(size_t row) {
+    // The u crossings of a row of rays kept in column order, applied lazily: every ray
+    // moves `pending` columns (sign of du), the ones leaving the block re-enter at the
+    // opposite face with the boundary radiance. Deferred while the row crosses empty voxel
+    // rows (nothing else changes its rays there), so empty space costs no data movement.
+    void applyShift(size_t row) {
+        int& k = pending_[row / rowStride_];
         const int nu = g_.nu;
         const size_t nuPad = rowStride_ / 3;
-        resetRay(row, g_.su > 0 ? nu - 1 : 0);
-        for (int c = 0; c < 3; ++c) {
-            float* L = &L_[row + c * nuPad];
-            if (g_.su > 0) {
-                const float in = L[nu - 1];
-                std::memmove(L + 1, L, sizeof(float) * size_t(nu - 1));
-                L[0] = in;
-            } else {
-                const float in = L[0];
-                std::memmove(L, L + 1, sizeof(float) * size_t(nu - 1));
-                L[nu - 1] = in;
+        while (k > 0) {
+            const int step = std::min(k, nu);
+            for (int i = 0; i < step; ++i) resetRay(row, g_.su > 0 ? nu - 1 - i : i);
+            for (int c = 0; c < 3; ++c) {
+                float* L = &L_[row + c * nuPad];
+                if (g_.su > 0)
+                    std::rotate(L, L + (nu - step), L + nu);
+                else
+                    std::rotate(L, L + step, L + nu);
             }
+            k -= step;
         }
     }
 
@@ -436,12 +440,14 @@ private:
         if (vr >= nv) vr -= nv;
         for (const Event& e : ev) {
             if (e.kind == 1) {
-                shiftRow(row);
+                ++pending_[row / rowStride_];
                 continue;
             }
             if (e.kind == 2) {  // the whole row moves to the next voxel row, or leaves the block
-                if (vr == (g_.sv > 0 ? nv - 1 : 0))
+                if (vr == (g_.sv > 0 ? nv - 1 : 0)) {
+                    applyShift(row);
                     for (int i = 0; i < nu; ++i) resetRay(row, i);
+                }
                 vr += g_.sv;
                 vr = vr < 0 ? nv - 1 : (vr >= nv ? 0 : vr);
                 continue;
@@ -449,6 +455,7 @@ private:
             if (!any) continue;  // the slice lies in empty tiles: rays cross it unchanged
             const int lo = spanLo_[vr], hi = spanHi_[vr];
             if (lo >= hi) continue;  // the voxel row lies in empty tiles
+            applyShift(row);
             // lo is tile-aligned; hi rounds up into the padding columns (sigma = 0 there).
             const int chunks = (hi - lo + K - 1) / K;
             float* plane = &P_[planeIndex(vr, slice_, lo)];
@@ -467,6 +474,7 @@ private:
     int tnu_ = 0, slice_ = 0;
     size_t rowStride_ = 0;
     std::vector<float> L_;  // ray radiance
+    std::vector<int> pending_;  // per ray row: u crossings not yet applied
     std::vector<float> P_;  // the current tile layer
     std::vector<int> spanLo_, spanHi_;  // per voxel row: columns in allocated tiles (tile-granular)
     std::vector<ClassState> stU_, stV_;

@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# Time and memory against the active voxels (docs/performance.md): default bakes of
+# procedural volumes generated here (no large files in the repo), each a separate process
+# so peak RSS is its own.
+#   scripts/bench/scale.sh [--quick] [--threads N] [--original PATH-TO-AN-OLDER-lpmbake]
+# Prints a markdown table; volumes and bakes go to out/bench/scale/.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+quick=0; threads=0; original=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --quick) quick=1 ;;
+    --threads) threads="$2"; shift ;;
+    --original) original="$2"; shift ;;
+    *) echo "usage: scale.sh [--quick] [--threads N] [--original LPMBAKE]" >&2; exit 2 ;;
+  esac
+  shift
+done
+[ -x build/baker/lpmbake ] || bash scripts/build.sh >/dev/null
+dir=out/bench/scale; mkdir -p "$dir"
+make_volume=build/scripts/bench/lpm_make_volume
+env=data/env/rooftop_small.hdr
+
+# name | generator arguments | bake arguments
+scenes=(
+  "plume-1M|plume --res 124|--albedo 0.9 --density-scale 0.25"
+  "puff-1|puffs --res 512 --count 1|--albedo 0.9"
+  "puffs-2-in-512^3|puffs --res 512 --count 2|--albedo 0.9"
+)
+if [ "$quick" = 0 ]; then
+  scenes+=("cloud-8M|cloud --res 256|--albedo 0.9 --density-scale 0.05")
+fi
+
+echo "| scene | active voxels | box voxels | bake | threads | passes (coarse) | solve s | total s | peak RSS MiB | bytes/active voxel above 200 MB |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
+for line in "${scenes[@]}"; do
+  IFS='|' read -r name gen bake <<<"$line"
+  vdb="$dir/$name.vdb"
+  [ -f "$vdb" ] || $make_volume $gen "$vdb" >/dev/null
+  for bin in build/baker/lpmbake $original; do
+    label=$([ "$bin" = build/baker/lpmbake ] && echo "this" || echo "original")
+    stats="$dir/$name.$label.json"
+    # shellcheck disable=SC2086
+    "$bin" "$vdb" --env "$env" $bake --threads "$threads" --stats "$stats" -o "$dir/$name.$label.out.vdb" 2>/dev/null
+    python3 - "$stats" "$name" "$label" <<'EOF'
+import json, sys
+d = json.load(open(sys.argv[1]))
+p = d["pass_stats"]
+coarse = sum(1 for x in p if x.get("coarse"))
+act = d["voxels"]["active"]
+rss = d["peak_rss_mib"]
+per = max(0.0, (rss - 200) * 2**20 / act)
+print(f"| {sys.argv[2]} | {act} | {d['voxels']['bounding_box']} | {sys.argv[3]} | {d['threads']} | {len(p)} ({coarse}) | "
+      f"{d['timings_s']['solve']:.2f} | {d['timings_s']['total']:.2f} | {rss:.0f} | {per:.0f} |")
+EOF
+  done
+done
