@@ -242,7 +242,7 @@ int runCli(int argc, char** argv) {
         ->default_val(b.solver.subdivide)->group(gS);
     app.add_option("--multires", multires,
                    "solve the higher scattering orders on a 2x coarser grid: auto (when the block stores at least "
-                   "262144 voxels), on, off (docs/multires.md)")
+                   "65536 voxels), on, off (docs/multires.md)")
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->group(gS);

@@ -38,7 +38,7 @@ struct LpmSettings {
     int multires = -1;          ///< higher orders on a 2x coarser grid: -1 auto (when the block stores
                                 ///< at least multiresMinVoxels voxels), 0 off, 1 on
     int multiresAfter = 1;      ///< passes at full resolution before the coarse grid takes over (>= 1)
-    int multiresMinVoxels = 1 << 18;  ///< auto threshold on stored voxels (64^3)
+    int multiresMinVoxels = 1 << 16;  ///< auto threshold on stored voxels (2 x 32^3)
     int multiresDirections = -1;  ///< directions per face on the coarse grid: -1 auto (n/2 when the
                                   ///< bins still divide it and it is >= 2, else n)
     int subdivide = 1;          ///< solve on voxels split k x k x k (same medium), average back: for

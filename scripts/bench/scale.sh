@@ -36,7 +36,9 @@ echo "|---|---|---|---|---|---|---|---|---|---|"
 for line in "${scenes[@]}"; do
   IFS='|' read -r name gen bake <<<"$line"
   vdb="$dir/$name.vdb"
-  [ -f "$vdb" ] || $make_volume $gen "$vdb" >/dev/null
+  kind=${gen%% *}; opts=${gen#* }
+  # shellcheck disable=SC2086
+  [ -f "$vdb" ] || $make_volume "$kind" "$vdb" $opts >/dev/null
   for bin in build/baker/lpmbake $original; do
     label=$([ "$bin" = build/baker/lpmbake ] && echo "this" || echo "original")
     stats="$dir/$name.$label.json"

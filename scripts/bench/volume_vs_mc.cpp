@@ -5,6 +5,7 @@
 //   lpm_bench_volume IN.vdb [--env SKY] [--sun DX,DY,DZ] [--albedo A] [--g G] [--density-scale S]
 //                    [--samples N] [--voxels K] [--threads T] [--settings default,full,...]
 // Settings: default (what the planner picks), full (every order at full resolution),
+// two-grid (multi-resolution forced on),
 // after2 (two full-resolution passes before the coarse grid), coarse-n4 (the coarse grid
 // keeps the fine directions).
 #include <sys/resource.h>
@@ -41,6 +42,7 @@ std::vector<std::string> split(const std::string& s) {
 LpmSettings settingsNamed(const std::string& name) {
     LpmSettings s;
     if (name == "full") s.multires = 0;
+    else if (name == "two-grid") s.multires = 1;
     else if (name == "after2") s.multiresAfter = 2;
     else if (name == "coarse-n4") s.multiresDirections = 4;
     else if (name != "default") {
