@@ -43,6 +43,12 @@ struct DenseBake {
         if (layout) return layout->index(x, y, z);
         return size_t(x) + size_t(nx) * (size_t(y) + size_t(ny) * z);
     }
+    /// Continuous block coordinate along `axis` of input voxel c's centre (scale != 1 or
+    /// affine): dense voxel d spans [d, d + 1), its centre at d + 0.5.
+    double blockCoord(const openvdb::Coord& c, int axis) const {
+        if (affine) return M[axis][0] * c[0] + M[axis][1] * c[1] + M[axis][2] * c[2] + t[axis];
+        return (c[axis] - corner[axis]) * scale;
+    }
 };
 
 struct BakeWriteOptions {
