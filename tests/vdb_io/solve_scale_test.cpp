@@ -217,11 +217,13 @@ TEST(SolveScale, WriteInterpolatesTrilinearly) {
     b.sh = sh.data();
     BakeWriteOptions wo;
     wo.path = dir + "/b.vdb";
-    writeBake(*density, b, openvdb::MetaMap(), wo);
+    BakeWriteReport rep = writeBake(*density, b, openvdb::MetaMap(), wo);
+    EXPECT_EQ(rep.shellDropped, 0u);
     const BakeFile f = readBakeFile(wo.path);
     ASSERT_EQ(f.sh.size(), 1u);
-    EXPECT_TRUE(f.sh[0]->tree().hasSameTopology(density->tree()));
-    // Dense centres lie at index -1.5, 0.5, ..., 8.5: every input voxel (0..7) is inside.
+    lpmtest::expectLightingTopology(*f.sh[0], *density);
+    // Dense centres lie at index -1.5, 0.5, ..., 8.5: every input voxel (0..7) and every
+    // shell voxel (-1 and 8) is inside, the field reproduced exactly.
     for (auto it = f.sh[0]->cbeginValueOn(); it; ++it) {
         const openvdb::Vec3d p = it.getCoord().asVec3d();
         EXPECT_NEAR((*it)[0], field(p), 1e-5) << it.getCoord();
@@ -235,9 +237,15 @@ TEST(SolveScale, WriteInterpolatesTrilinearly) {
             for (int x = 0; x < 5; ++x)
                 for (int c = 0; c < 3; ++c) sh5[size_t(x + 5 * (y + 6 * z)) * 3 + c] = sh[size_t(x + 6 * (y + 6 * z)) * 3 + c];
     b.sh = sh5.data();
-    writeBake(*density, b, openvdb::MetaMap(), wo);
+    rep = writeBake(*density, b, openvdb::MetaMap(), wo);
     const BakeFile f5 = readBakeFile(wo.path);
     auto acc = f5.sh[0]->getConstAccessor();
     const openvdb::Coord c7(7, 3, 4);
     EXPECT_NEAR(acc.getValue(c7)[0], field(openvdb::Vec3d(6.5, 3, 4)), 1e-5) << "clamped to the border centre";
+    // The shell voxels beyond the last centre (the x = 8 plane, 10x10, and the x = 7 ring
+    // around the density's face, 10x10 - 8x8) would be clamped too, i.e. extrapolated: they
+    // are left out instead; the density's own voxels (x = 7) stay.
+    EXPECT_EQ(rep.shellDropped, 100u + 36u);
+    EXPECT_FALSE(acc.isValueOn(openvdb::Coord(8, 3, 4)));
+    EXPECT_TRUE(acc.isValueOn(openvdb::Coord(-1, 3, 4)));
 }
