@@ -4,6 +4,10 @@
 //      + T * (1 - albedo) * L_e * (1 - exp(-sigma_t dt))        (emission, if baked)
 // with density and S trilinearly interpolated (S from the SH grids, clamped at zero), and
 // adds T * environment(v) behind the volume. Settings come from the bake's metadata.
+// The march samples only where the interpolated density is non-zero, i.e. within one voxel
+// of an active density voxel; the lighting grids hold solved S on that whole footprint
+// (vdb_io/lighting_topology.h), so no lookup there reads the zero background. A bake
+// without that shell (older lpmbake) is rendered as it is, with a warning: its edge is dark.
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -20,6 +24,7 @@
 #include "vdb_io/color.h"
 #include "vdb_io/env_reader.h"
 #include "vdb_io/io_error.h"
+#include "vdb_io/lighting_topology.h"
 
 namespace lpm {
 
@@ -80,6 +85,10 @@ void runRender(const RenderOptions& o, const Log& log) {
     if (!problems.empty()) throw InputError("render", "'" + o.bake + "' is not an lpmbake bake: " + problems.front());
     if (!bake.density)
         throw InputError("render", "'" + o.bake + "' has no density grid (baked with --no-density?); cannot render");
+    if (const std::uint64_t missing = missingShellVoxels(*bake.density, *bake.sh.front()))
+        log.warn("render: '" + o.bake + "' has no S at " + std::to_string(missing) +
+                 " voxel(s) within one voxel of the density (written by an lpmbake before the lighting shell); "
+                 "the volume's edge will render dark: bake it again");
     const openvdb::MetaMap& meta = *bake.meta;
     const double densityScale = metaDouble(meta, "lpm:density_scale", 1.0);
     const RGB albedo = metaRgb(meta, "lpm:albedo", RGB(0.9f));

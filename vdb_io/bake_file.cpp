@@ -11,6 +11,7 @@
 #include "core/sh.h"
 #include "vdb_io/atomic_file.h"
 #include "vdb_io/io_error.h"
+#include "vdb_io/lighting_topology.h"
 #include "vdb_io/vdb_file.h"
 #include "vdb_io/volume_reader.h"
 
@@ -34,9 +35,7 @@ Stencil stencilAt(const DenseBake& b, const openvdb::Coord& c) {
     int i0[3], i1[3];
     float t[3];
     for (int a = 0; a < 3; ++a) {
-        const double raw = b.affine ? b.M[a][0] * c[0] + b.M[a][1] * c[1] + b.M[a][2] * c[2] + b.t[a]
-                                    : (c[a] - b.corner[a]) * b.scale;
-        const double u = std::clamp(raw - 0.5, 0.0, double(n[a] - 1));
+        const double u = std::clamp(b.blockCoord(c, a) - 0.5, 0.0, double(n[a] - 1));
         i0[a] = std::min(int(std::floor(u)), std::max(0, n[a] - 2));
         i1[a] = std::min(i0[a] + 1, n[a] - 1);
         t[a] = float(u - i0[a]);
@@ -44,7 +43,7 @@ Stencil stencilAt(const DenseBake& b, const openvdb::Coord& c) {
     Stencil s;
     for (int k = 0; k < 8; ++k) {
         const int x = (k & 1) ? i1[0] : i0[0], y = (k & 2) ? i1[1] : i0[1], z = (k & 4) ? i1[2] : i0[2];
-        s.index[k] = size_t(x) + size_t(b.nx) * (size_t(y) + size_t(b.ny) * z);
+        s.index[k] = b.index(x, y, z);
         s.weight[k] = ((k & 1) ? t[0] : 1 - t[0]) * ((k & 2) ? t[1] : 1 - t[1]) * ((k & 4) ? t[2] : 1 - t[2]);
     }
     return s;
@@ -52,6 +51,8 @@ Stencil stencilAt(const DenseBake& b, const openvdb::Coord& c) {
 
 /// A Vec3f grid on `topo`'s topology whose active voxels take value(denseIndex) (scale 1:
 /// the dense voxel holding the input voxel; otherwise interpolated between dense voxels).
+/// lightingTopology() keeps only voxels with solved values, so no stencil index is npos
+/// there; the density's own voxels always have one from readVolume's block.
 template <typename F>
 openvdb::Vec3SGrid::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake& b, F value) {
     openvdb::Vec3SGrid::Ptr g = topo.deepCopy();
@@ -62,7 +63,7 @@ openvdb::Vec3SGrid::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake
                 const Stencil s = stencilAt(b, it.getCoord());
                 openvdb::Vec3s v(0.f);
                 for (int k = 0; k < 8; ++k)
-                    if (s.weight[k] != 0.f) v += value(s.index[k]) * s.weight[k];
+                    if (s.weight[k] != 0.f && s.index[k] != Medium::npos) v += value(s.index[k]) * s.weight[k];
                 it.setValue(v);
             }
         });
@@ -73,7 +74,7 @@ openvdb::Vec3SGrid::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake
             const openvdb::Coord d = it.getCoord() - b.blockMin;
             if (d.x() < 0 || d.y() < 0 || d.z() < 0 || d.x() >= b.nx || d.y() >= b.ny || d.z() >= b.nz) continue;
             const size_t i = b.index(d.x(), d.y(), d.z());
-            if (i == Medium::npos) continue;  // cannot happen for active voxels: their tiles are stored
+            if (i == Medium::npos) continue;  // not for readVolume's blocks: every tile read from is stored
             it.setValue(value(i));
         }
     });
@@ -96,13 +97,17 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
     BakeWriteReport rep;
     AtomicOutput out(o.path, o.inputs);  // checks the path before any work
 
-    // Shared topology: the input's active voxels (tiles voxelised so every grid can hold
-    // per-voxel values).
-    openvdb::Vec3SGrid::Ptr topo = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
-    topo->setTransform(density.transform().copy());
-    topo->tree().topologyUnion(density.tree());
-    topo->tree().voxelizeActiveTiles();
+    // The lighting grids' topology: the input's active voxels (tiles voxelised so every
+    // grid can hold per-voxel values) and the shell a trilinear lookup reads around them.
+    const LightingTopology lt = lightingTopology(density, b);
+    const openvdb::Vec3SGrid::Ptr topo = lt.grid;
     rep.voxelsWritten = topo->activeVoxelCount();
+    rep.shellVoxels = lt.shellVoxels;
+    rep.shellDropped = lt.shellDropped;
+    if (lt.shellDropped > 0)
+        rep.warnings.push_back(std::to_string(lt.shellDropped) + " voxel(s) of the one-voxel shell around the density "
+                               "have no solved S (solve block too small) and are left inactive: the volume's edge "
+                               "renders dark there");
 
     openvdb::GridPtrVec grids;
     for (int k = 0; k < b.coeffs; ++k) {

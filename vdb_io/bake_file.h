@@ -5,8 +5,9 @@
 //   scatter           Vec3f, direction-averaged S = sh_0 * Y00, class "fog volume"
 //   density           the input density (unless --no-density), class "fog volume"
 //   emission          Vec3f emitted radiance L_e used by the bake (only with --emission-grid)
-// All grids share the input density's transform and active topology. File metadata keys
-// start with "lpm:".
+// All grids share the input density's transform. `density` keeps its active topology; the
+// lighting grids (sh_*, scatter, emission) hold the density's active voxels dilated by the
+// trilinear footprint (vdb_io/lighting_topology.h). File metadata keys start with "lpm:".
 #pragma once
 
 #include <string>
@@ -43,6 +44,12 @@ struct DenseBake {
         if (layout) return layout->index(x, y, z);
         return size_t(x) + size_t(nx) * (size_t(y) + size_t(ny) * z);
     }
+    /// Continuous block coordinate along `axis` of input voxel c's centre (scale != 1 or
+    /// affine): dense voxel d spans [d, d + 1), its centre at d + 0.5.
+    double blockCoord(const openvdb::Coord& c, int axis) const {
+        if (affine) return M[axis][0] * c[0] + M[axis][1] * c[1] + M[axis][2] * c[2] + t[axis];
+        return (c[axis] - corner[axis]) * scale;
+    }
 };
 
 struct BakeWriteOptions {
@@ -56,12 +63,15 @@ struct BakeWriteOptions {
 struct BakeWriteReport {
     std::vector<std::string> warnings;
     double maxAbsValue = 0;       ///< largest |value| over the SH grids
-    std::uint64_t voxelsWritten = 0;  ///< active voxels per grid
+    std::uint64_t voxelsWritten = 0;  ///< active voxels per lighting grid (density's + shell)
+    std::uint64_t shellVoxels = 0;    ///< of which the shell around the density's active voxels
+    std::uint64_t shellDropped = 0;   ///< shell voxels without solved S, left inactive (0 from readVolume)
     double seconds = 0;
 };
 
-/// Builds the grids on `density`'s transform and topology and writes them with `meta`
-/// atomically to options.path. Throws OutputError.
+/// Builds the grids on `density`'s transform (the lighting grids on lightingTopology(),
+/// `density` on its own topology) and writes them with `meta` atomically to options.path.
+/// Throws OutputError.
 BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& bake, const openvdb::MetaMap& meta,
                           const BakeWriteOptions& options);
 

@@ -20,6 +20,7 @@
 #include "core/parallel.h"
 #include "vdb_io/color.h"
 #include "vdb_io/io_error.h"
+#include "vdb_io/lighting_topology.h"
 #include "vdb_io/vdb_file.h"
 
 namespace lpm {
@@ -133,11 +134,57 @@ void sampleEmission(const VolumeReadOptions& o, VolumeInput& out, PosFn pos, int
     if (badE > 0) out.warnings.push_back(ew + ": --sanitize clamped " + std::to_string(badE.load()) + " voxel(s) to 0");
 }
 
+/// Solve voxels of padding at --solve-scale S: at least `pad`, and enough that the centres
+/// of the lighting shell's input voxels (kLightingShell past the active box) lie within the
+/// span of the solve voxels' centres, so the bake interpolates S there instead of clamping.
+/// The shell voxel bmin - shell sits at block coordinate (0.5 - shell) S + P, which must be
+/// >= 0.5 (the first centre): P >= (shell - 0.5) S + 0.5; the high side gives the same bound.
+/// 1 for S <= 1, 2 for S = 2, 5 for S = 8.
+int solvePad(int pad, double S) {
+    return std::max(pad, int(std::ceil((kLightingShell - 0.5) * S + 0.5 - 1e-9)));
+}
+
 /// An input voxel (index along one axis) and its weight in a solve voxel.
 struct Tap {
     int index;
     double weight;
 };
+
+/// The sheared block along the orthonormal axes e (solve voxel size h): low corner `lo`
+/// and voxel counts. It covers the active box's voxels (index extents +-0.5) plus `pad`
+/// solve voxels per side, and more where needed so that every lighting-shell voxel's centre
+/// (kLightingShell past the box) lies at least half a solve voxel inside, between solve-voxel
+/// centres: the bake interpolates S there, no clamp. The padding is whole solve voxels from
+/// the voxels' extent, so the block stays aligned with it as without the shell.
+void shearedBlockExtent(const openvdb::math::Transform& xf, const openvdb::Vec3d e[3], const openvdb::CoordBBox& bbox,
+                        double h, int pad, double lo[3], double dims[3]) {
+    // Projections of the box grown by `grow` index units on each axis e[i].
+    auto extent = [&](double grow, double l[3], double u[3]) {
+        for (int i = 0; i < 3; ++i) {
+            l[i] = 1e300;
+            u[i] = -1e300;
+        }
+        for (int k = 0; k < 8; ++k) {
+            const openvdb::Vec3d c((k & 1) ? bbox.max().x() + grow : bbox.min().x() - grow,
+                                   (k & 2) ? bbox.max().y() + grow : bbox.min().y() - grow,
+                                   (k & 4) ? bbox.max().z() + grow : bbox.min().z() - grow);
+            const openvdb::Vec3d p = xf.indexToWorld(c);
+            for (int i = 0; i < 3; ++i) {
+                l[i] = std::min(l[i], e[i].dot(p));
+                u[i] = std::max(u[i], e[i].dot(p));
+            }
+        }
+    };
+    double vlo[3], vhi[3], slo[3], shi[3];
+    extent(0.5, vlo, vhi);                   // the voxels' extents
+    extent(double(kLightingShell), slo, shi);  // the shell voxels' centres
+    for (int i = 0; i < 3; ++i) {
+        const int padLo = std::max(pad, int(std::ceil((vlo[i] - slo[i]) / h + 0.5 - 1e-9)));
+        const int padHi = std::max(pad, int(std::ceil((shi[i] - vhi[i]) / h + 0.5 - 1e-9)));
+        lo[i] = vlo[i] - padLo * h;
+        dims[i] = std::max(1.0, std::ceil((vhi[i] + padHi * h - lo[i]) / h - 1e-6));
+    }
+}
 
 /// --solve-scale S != 1: builds out.medium on a grid with the input's axes and voxel size
 /// / S (out.medium's voxelSize and localToWorld hold the input's on entry). See
@@ -168,23 +215,8 @@ void resampleSheared(const openvdb::FloatGrid& grid, const openvdb::CoordBBox& b
     e[2] /= e2len;
     const double det = std::fabs(a[0].dot(a[1].cross(a[2])));
     const double h = std::cbrt(det) / o.solveScale;
-    // Extent of the active box (voxel extents included) in the new frame.
-    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
-    for (int k = 0; k < 8; ++k) {
-        const openvdb::Vec3d c((k & 1) ? bbox.max().x() + 0.5 : bbox.min().x() - 0.5,
-                               (k & 2) ? bbox.max().y() + 0.5 : bbox.min().y() - 0.5,
-                               (k & 4) ? bbox.max().z() + 0.5 : bbox.min().z() - 0.5);
-        const openvdb::Vec3d p = xf.indexToWorld(c);
-        for (int i = 0; i < 3; ++i) {
-            lo[i] = std::min(lo[i], e[i].dot(p));
-            hi[i] = std::max(hi[i], e[i].dot(p));
-        }
-    }
-    double dims[3];
-    for (int i = 0; i < 3; ++i) {
-        lo[i] -= pad * h;
-        dims[i] = std::max(1.0, std::ceil((hi[i] + pad * h - lo[i]) / h - 1e-6));
-    }
+    double lo[3], dims[3];
+    shearedBlockExtent(xf, e, bbox, h, pad, lo, dims);
     const double count = dims[0] * dims[1] * dims[2];
     if (count > double(o.maxDenseVoxels))
         throw InputError(kComp, where + ": its sheared transform is resampled to " + std::to_string(int(dims[0])) + "x" +
@@ -235,11 +267,12 @@ void resampleSheared(const openvdb::FloatGrid& grid, const openvdb::CoordBBox& b
                            std::to_string(h) + " in an orthonormal frame");
 }
 
-void resampleToSolveGrid(const openvdb::FloatGrid& grid, const openvdb::CoordBBox& bbox, int pad,
+void resampleToSolveGrid(const openvdb::FloatGrid& grid, const openvdb::CoordBBox& bbox, int padIn,
                          const VolumeReadOptions& o, const std::string& where, VolumeInput& out) {
     const double S = o.solveScale;
     Medium& m = out.medium;
     const openvdb::math::Transform& xf = grid.transform();
+    const int pad = solvePad(padIn, S);
 
     // Solve voxels per axis: enough to cover the bounding box (the 1e-6 keeps e.g. 10 * 0.3
     // = 3.0000000000000004 from adding a voxel), plus the pad on both sides. Computed in
@@ -329,6 +362,39 @@ void resampleToSolveGrid(const openvdb::FloatGrid& grid, const openvdb::CoordBBo
             return xf.indexToWorld(p);
         }, k);
     }
+}
+
+/// One flag per 8^3 tile of the S = 1 block (low corner index `lo`, `dim` voxels; order
+/// tx + tnx*(ty + tny*tz)): set where the tile holds an active voxel or a voxel of the
+/// lighting shell around one, so the solver computes S wherever the bake writes it. The
+/// block's pad is at least kLightingShell, so every shell voxel is inside it.
+std::vector<std::uint8_t> tilesToStore(const openvdb::FloatGrid& grid, const openvdb::Coord& lo, const openvdb::Coord& dim) {
+    Medium probe;
+    probe.nx = dim.x();
+    probe.ny = dim.y();
+    probe.nz = dim.z();
+    std::vector<std::uint8_t> active(size_t(probe.tilesX()) * probe.tilesY() * probe.tilesZ(), 0);
+    auto mark = [&](const openvdb::Coord& c) {  // the tiles of the voxels within the shell of c
+        int t0[3], t1[3];
+        for (int a = 0; a < 3; ++a) {
+            const int d = c[a] - lo[a];
+            t0[a] = (d - kLightingShell) / Medium::kTile;
+            t1[a] = (d + kLightingShell) / Medium::kTile;
+        }
+        for (int tz = t0[2]; tz <= t1[2]; ++tz)
+            for (int ty = t0[1]; ty <= t1[1]; ++ty)
+                for (int tx = t0[0]; tx <= t1[0]; ++tx)
+                    active[size_t(tx) + size_t(probe.tilesX()) * (size_t(ty) + size_t(probe.tilesY()) * tz)] = 1;
+    };
+    for (auto it = grid.tree().cbeginValueOn(); it; ++it) {
+        if (it.isVoxelValue()) {
+            mark(it.getCoord());
+        } else {
+            const openvdb::CoordBBox tb = it.getBoundingBox();
+            for (auto c = tb.begin(); c; ++c) mark(*c);
+        }
+    }
+    return active;
 }
 
 }  // namespace
@@ -495,7 +561,7 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
         return;
     }
     const openvdb::CoordBBox bbox = grid->evalActiveVoxelBoundingBox();
-    const int pad = std::max(0, o.pad);
+    const int pad = std::max(kLightingShell, o.pad);  // the lighting shell must lie inside the block
     const double S = o.solveScale;
     if (!(S > 0) || !std::isfinite(S))
         throw InputError(kComp, "solve scale must be positive and finite, got " + std::to_string(S));
@@ -517,27 +583,10 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
         throw InputError(kComp, where + ": the active bounding box " + std::to_string(dim.x()) + "x" +
                                         std::to_string(dim.y()) + "x" + std::to_string(dim.z()) +
                                         " is too large to tile (more than 2^32 tiles of 8^3)");
-    // Dense 8^3 tiles over the block; only tiles holding an active voxel are allocated, so
+    // Dense 8^3 tiles over the block; only the tiles tilesToStore() marks are allocated, so
     // memory follows the active region rather than its bounding box.
     {
-        Medium probe;
-        probe.nx = dim.x();
-        probe.ny = dim.y();
-        probe.nz = dim.z();
-        std::vector<std::uint8_t> active(size_t(probe.tilesX()) * probe.tilesY() * probe.tilesZ(), 0);
-        auto mark = [&](const openvdb::Coord& c) {
-            const openvdb::Coord d = c - lo;
-            active[size_t(d.x() / Medium::kTile) +
-                   size_t(probe.tilesX()) * (size_t(d.y() / Medium::kTile) + size_t(probe.tilesY()) * (d.z() / Medium::kTile))] = 1;
-        };
-        for (auto it = grid->tree().cbeginValueOn(); it; ++it) {
-            if (it.isVoxelValue()) {
-                mark(it.getCoord());
-            } else {
-                const openvdb::CoordBBox tb = it.getBoundingBox();
-                for (auto c = tb.begin(); c; ++c) mark(*c);
-            }
-        }
+        const std::vector<std::uint8_t> active = tilesToStore(*grid, lo, dim);
         std::uint64_t tiles = 0;
         for (std::uint8_t a : active) tiles += a;
         const std::uint64_t stored = tiles * Medium::kTileVoxels;

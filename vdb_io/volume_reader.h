@@ -2,7 +2,10 @@
 // turns it into the solver's dense core Medium.
 //
 // Conventions (docs/cli.md):
-//  - the dense block is the grid's active bounding box plus `pad` voxels on every side;
+//  - the dense block is the grid's active bounding box plus `pad` voxels on every side
+//    (at least vdb_io/lighting_topology.h's kLightingShell: the bake writes S on the
+//    active voxels dilated by that shell, so the solver must compute S there; at S = 1
+//    the sparse tiles allocated are those holding an active voxel or a shell voxel);
 //    VDB voxel centres sit at integer index coordinates, so dense voxel (0,0,0) covers
 //    index space [blockMin - 0.5, blockMin + 0.5) and Medium::origin is the world
 //    position of index blockMin - 0.5;
@@ -12,8 +15,12 @@
 //  - emission: emitted radiance L_e (pbrt-v4 convention, source term sigma_a * L_e),
 //    value * emissionScale, sampled trilinearly at the dense voxel centres in world space.
 //  - solveScale S != 1 (--solve-scale): the block is a resampled grid with the input's
-//    axes and voxel size / S, covering the active bounding box (plus `pad` solve voxels),
-//    its low corner on the bounding box's low corner minus the pad. A solve voxel's
+//    axes and voxel size / S, covering the active bounding box (plus `pad` solve voxels,
+//    raised to ceil(S / 2 + 1/2) for S > 1 so that the shell voxels' centres fall between
+//    solve-voxel centres), its low corner on the bounding box's low corner minus the pad.
+//    Sheared transforms: the resampled block covers the active voxels plus at least `pad`
+//    whole solve voxels per side, more where a shell voxel's centre would otherwise lie
+//    within half a solve voxel of the block's border. A solve voxel's
 //    sigma_t is the mean of the input over its volume (S < 1: every input voxel weighted
 //    by its overlap, i.e. the limit of point sub-samples with nearest-voxel lookups, so
 //    optical depth is preserved exactly) or the input voxel containing its centre (S > 1);
@@ -45,7 +52,7 @@ struct VolumeReadOptions {
     double temperatureOffset = 0.0;
     double temperatureIntensity = 1.0;  ///< L_e = intensity * blackbody(K), 6500 K -> luminance 1
     std::string workingSpace = "ACEScg";  ///< colour space of the black-body emission
-    int pad = 1;                     ///< empty voxels added around the active bounding box
+    int pad = 1;                     ///< empty voxels added around the active bounding box (>= kLightingShell used)
     std::uint64_t maxDenseVoxels = 1ull << 30;  ///< refuse larger dense blocks (memory guard)
     double solveScale = 1.0;         ///< solve voxels per input voxel along each axis (--solve-scale)
 };

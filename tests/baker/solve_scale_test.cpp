@@ -110,17 +110,19 @@ TEST(SolveScale, HomogeneousCubeAgreesAcrossScales) {
     EXPECT_LT(dh.mean, 0.028);
     EXPECT_LT(d2.max, 0.0055);
     EXPECT_LT(d2.mean, 0.004);
-    // The solve grids: (16 * S) + 2 pad voxels per axis.
+    // The solve grids: (16 * S) + 2 pad voxels per axis, 2 x 2 at S = 2 (the lighting
+    // shell's centres must fall between solve-voxel centres).
     auto dims = [](const BakeFile& f) { return f.meta->metaValue<openvdb::Vec3i>("lpm:solve_grid_dims"); };
     EXPECT_EQ(dims(ref), openvdb::Vec3i(18, 18, 18));
     EXPECT_EQ(dims(half), openvdb::Vec3i(10, 10, 10));
-    EXPECT_EQ(dims(twice), openvdb::Vec3i(34, 34, 34));
+    EXPECT_EQ(dims(twice), openvdb::Vec3i(36, 36, 36));
     EXPECT_NEAR(half.meta->metaValue<openvdb::Vec3d>("lpm:solve_voxel_size").x(), 0.5, 1e-12);
     EXPECT_NEAR(twice.meta->metaValue<openvdb::Vec3d>("lpm:solve_voxel_size").z(), 0.125, 1e-12);
 }
 
-// (d) Whatever the solve grid, the output lives on the input's transform and active
-// voxels; the solve grid is recorded in the metadata, the stats and a stderr note.
+// (d) Whatever the solve grid, the output lives on the input's transform, the density on
+// its active voxels and the lighting grids on those plus the one-voxel shell (docs/
+// output_format.md); the solve grid is recorded in the metadata, the stats and a stderr note.
 TEST(SolveScale, OutputKeepsInputTopologyAndRecordsTheGrid) {
     const std::string dir = lpmtest::scratchDir();
     auto src = readTorus();
@@ -136,10 +138,10 @@ TEST(SolveScale, OutputKeepsInputTopologyAndRecordsTheGrid) {
         EXPECT_TRUE(validateBake(b).empty());
         ASSERT_EQ(b.sh.size(), 4u);
         for (const auto& g : b.sh) {
-            EXPECT_TRUE(g->tree().hasSameTopology(src->tree())) << g->getName() << " at S " << s;
+            lpmtest::expectLightingTopology(*g, *src);  // the density's voxels and the shell, none dropped
             EXPECT_TRUE(g->transform() == src->transform());
         }
-        EXPECT_TRUE(b.scatter->tree().hasSameTopology(src->tree()));
+        lpmtest::expectLightingTopology(*b.scatter, *src);
         ASSERT_TRUE(b.density);
         EXPECT_TRUE(b.density->tree().hasSameTopology(src->tree()));
         double maxS = 0;

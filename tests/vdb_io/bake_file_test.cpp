@@ -54,7 +54,12 @@ TEST(BakeFile, LayoutTopologyAndValues) {
     BakeWriteOptions o;
     o.path = dir + "/bake.vdb";
     const BakeWriteReport rep = writeBake(*f.density, f.bake, meta, o);
-    EXPECT_EQ(rep.voxelsWritten, f.density->activeVoxelCount());
+    // The lighting grids: the density's voxels and the one-voxel shell around them (all
+    // inside the 9x5x5 block, so none is dropped).
+    EXPECT_EQ(rep.shellDropped, 0u);
+    EXPECT_GT(rep.shellVoxels, 0u);
+    EXPECT_EQ(rep.voxelsWritten, f.density->activeVoxelCount() + rep.shellVoxels);
+    EXPECT_TRUE(rep.warnings.empty());
 
     const BakeFile b = readBakeFile(o.path);
     EXPECT_TRUE(validateBake(b).empty());
@@ -67,9 +72,9 @@ TEST(BakeFile, LayoutTopologyAndValues) {
         EXPECT_EQ(g->getGridClass(), openvdb::GRID_UNKNOWN);
         EXPECT_EQ(g->getVectorType(), openvdb::VEC_INVARIANT);
         EXPECT_TRUE(g->transform() == f.density->transform());
-        EXPECT_TRUE(g->tree().hasSameTopology(f.density->tree()));
-        for (auto it = f.density->cbeginValueOn(); it; ++it) {
-            const openvdb::Vec3s v = g->tree().getValue(it.getCoord());
+        lpmtest::expectLightingTopology(*g, *f.density);
+        for (auto it = g->cbeginValueOn(); it; ++it) {  // shell voxels hold the block's values too
+            const openvdb::Vec3s v = *it;
             const float* e = denseAt(f, it.getCoord(), k);
             ASSERT_EQ(v, openvdb::Vec3s(e[0], e[1], e[2])) << "sh_" << k << " at " << it.getCoord();
         }
@@ -79,6 +84,8 @@ TEST(BakeFile, LayoutTopologyAndValues) {
     const float* e0 = denseAt(f, c, 0);
     EXPECT_FLOAT_EQ(b.scatter->tree().getValue(c).x(), e0[0] * float(kY00));
     EXPECT_FLOAT_EQ(b.density->tree().getValue(c), 2.f);
+    EXPECT_TRUE(b.density->tree().hasSameTopology(f.density->tree())) << "the density copy keeps its topology";
+    lpmtest::expectLightingTopology(*b.scatter, *f.density);
     EXPECT_EQ(b.meta->metaValue<std::string>("lpm:density_grid"), "density");
     EXPECT_EQ(b.shOrder, 2);
 }
@@ -125,6 +132,38 @@ TEST(BakeFile, EmptyBakeAndNoDensity) {
     EXPECT_EQ(b.sh.size(), 1u);
     EXPECT_EQ(b.sh[0]->activeVoxelCount(), 0u);
     EXPECT_FALSE(b.density);
+}
+
+// The shell is written only where the solver computed S: a shell voxel in an unallocated
+// 8^3 tile of the block (no solved value) is left inactive and reported, not extrapolated.
+TEST(BakeFile, ShellOnlyWhereSolved) {
+    const std::string dir = lpmtest::scratchDir();
+    initOpenVdb();
+    auto density = openvdb::FloatGrid::create(0.f);
+    density->tree().setValue(openvdb::Coord(6, 2, 2), 1.f);  // block voxel (7, 3, 3): tile 0's last x
+    Medium layout;
+    const std::vector<std::uint8_t> tiles = {1, 0};  // 16x8x8 block: tile x = 1 not stored
+    layout.allocate(16, 8, 8, &tiles);
+    ASSERT_TRUE(layout.sparse());
+    std::vector<float> sh(layout.voxelCount() * 3, 0.5f);
+    DenseBake b;
+    b.blockMin = openvdb::Coord(-1);
+    b.nx = 16;
+    b.ny = b.nz = 8;
+    b.sh = sh.data();
+    b.layout = &layout;
+    BakeWriteOptions o;
+    o.path = dir + "/b.vdb";
+    const BakeWriteReport rep = writeBake(*density, b, openvdb::MetaMap(), o);
+    EXPECT_EQ(rep.shellDropped, 9u) << "the 3x3 shell voxels at x = 7 lie in the missing tile";
+    EXPECT_EQ(rep.shellVoxels, 26u - 9u);
+    ASSERT_EQ(rep.warnings.size(), 1u);
+    EXPECT_NE(rep.warnings[0].find("no solved S"), std::string::npos) << rep.warnings[0];
+    const BakeFile f = readBakeFile(o.path);
+    EXPECT_EQ(f.sh[0]->activeVoxelCount(), 18u);
+    EXPECT_FALSE(f.sh[0]->tree().isValueOn(openvdb::Coord(7, 2, 2)));
+    EXPECT_TRUE(f.sh[0]->tree().isValueOn(openvdb::Coord(5, 1, 1)));
+    EXPECT_EQ(f.sh[0]->tree().getValue(openvdb::Coord(5, 1, 1)), openvdb::Vec3s(0.5f));
 }
 
 TEST(BakeFile, NeverOverwritesInputAndValidatesForeignFiles) {

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <utility>
 
 #include "test_helpers.h"
 #include "vdb_io/bake_file.h"
@@ -54,25 +55,34 @@ openvdb::FloatGrid::Ptr lumpyGrid() {
 }  // namespace
 
 // The solve grid keeps the input's axes, divides the voxel size by S and starts at the
-// active bounding box's low corner minus one solve voxel of padding.
+// active bounding box's low corner minus the padding: one solve voxel for S <= 1, and for
+// S > 1 enough (2 at S = 2, 5 at S = 8) that the centre of the lighting shell's input voxels
+// (one input voxel outside the box) lies between solve-voxel centres.
 TEST(SolveScale, GridPlacement) {
     auto g = lumpyGrid();
     const VolumeInput ref = toMedium(*g, 1.0);
-    for (double S : {0.5, 0.3, 2.0}) {
+    const std::pair<double, int> cases[] = {{0.5, 1}, {0.3, 1}, {2.0, 2}, {3.0, 2}, {8.0, 5}};  // S, pad
+    for (const auto& [S, pad] : cases) {
         const VolumeInput v = toMedium(*g, S);
         const Medium& m = v.medium;
         EXPECT_EQ(v.solveGrid.scale, S);
         for (int a = 0; a < 3; ++a) {
             EXPECT_NEAR(m.voxelSize[a], ref.medium.voxelSize[a] / S, 1e-12) << "S " << S;
-            // bbox extent (input voxels) covered by whole solve voxels, plus 2 pad voxels.
+            // bbox extent (input voxels) covered by whole solve voxels, plus the pad twice.
             const int extent = ref.medium.dim(a) - 2;
-            EXPECT_EQ(m.dim(a), int(std::ceil(extent * S - 1e-6)) + 2) << "S " << S << " axis " << a;
+            EXPECT_EQ(m.dim(a), int(std::ceil(extent * S - 1e-6)) + 2 * pad) << "S " << S << " axis " << a;
+            // The shell voxels bmin - 1 and bmax + 1: block coordinates of their centres
+            // (voxel centres at integer + 0.5) within [0.5, n - 0.5].
+            const openvdb::Coord lo = g->evalActiveVoxelBoundingBox().min() - openvdb::Coord(1);
+            const openvdb::Coord hi = g->evalActiveVoxelBoundingBox().max() + openvdb::Coord(1);
+            EXPECT_GE((lo[a] - v.solveGrid.corner[a]) * S, 0.5 - 1e-9) << "S " << S;
+            EXPECT_LE((hi[a] - v.solveGrid.corner[a]) * S, m.dim(a) - 0.5 + 1e-9) << "S " << S;
         }
         for (int i = 0; i < 9; ++i) EXPECT_NEAR(m.localToWorld.m[i], ref.medium.localToWorld.m[i], 1e-12);
         const openvdb::Coord bmin = g->evalActiveVoxelBoundingBox().min();
-        const openvdb::Vec3d c = g->transform().indexToWorld(openvdb::Vec3d(bmin.x() - 0.5 - 1 / S,
-                                                                             bmin.y() - 0.5 - 1 / S,
-                                                                             bmin.z() - 0.5 - 1 / S));
+        const openvdb::Vec3d c = g->transform().indexToWorld(openvdb::Vec3d(bmin.x() - 0.5 - pad / S,
+                                                                             bmin.y() - 0.5 - pad / S,
+                                                                             bmin.z() - 0.5 - pad / S));
         EXPECT_NEAR(m.origin.x, c.x(), 1e-9);
         EXPECT_NEAR(m.origin.y, c.y(), 1e-9);
         EXPECT_NEAR(m.origin.z, c.z(), 1e-9);
@@ -170,9 +180,9 @@ TEST(SolveScale, MaxVoxelsAppliesToTheSolveBlock) {
     o.maxDenseVoxels = 8 * Medium::kTileVoxels;  // the S = 1 block (10 + 2 pad) fits: 2^3 tiles of 8^3
     VolumeInput v;
     EXPECT_NO_THROW(gridToMedium(*g, o, v));
-    o.solveScale = 2;  // 22^3 does not
+    o.solveScale = 2;  // 20 + 2 x 2 pad = 24^3 does not
     lpmtest::expectThrowWith<InputError>([&] { VolumeInput w; gridToMedium(*g, o, w); },
-                                         {"22x22x22 = 10648", "--max-voxels", "smaller --solve-scale"});
+                                         {"24x24x24 = 13824", "--max-voxels", "smaller --solve-scale"});
     // A huge S on a huge extent is refused, not overflowed.
     auto big = lpmtest::cubeGrid(2, 1.f);
     big->tree().setValueOn(openvdb::Coord(1 << 28, 0, 0), 1.f);
@@ -207,11 +217,13 @@ TEST(SolveScale, WriteInterpolatesTrilinearly) {
     b.sh = sh.data();
     BakeWriteOptions wo;
     wo.path = dir + "/b.vdb";
-    writeBake(*density, b, openvdb::MetaMap(), wo);
+    BakeWriteReport rep = writeBake(*density, b, openvdb::MetaMap(), wo);
+    EXPECT_EQ(rep.shellDropped, 0u);
     const BakeFile f = readBakeFile(wo.path);
     ASSERT_EQ(f.sh.size(), 1u);
-    EXPECT_TRUE(f.sh[0]->tree().hasSameTopology(density->tree()));
-    // Dense centres lie at index -1.5, 0.5, ..., 8.5: every input voxel (0..7) is inside.
+    lpmtest::expectLightingTopology(*f.sh[0], *density);
+    // Dense centres lie at index -1.5, 0.5, ..., 8.5: every input voxel (0..7) and every
+    // shell voxel (-1 and 8) is inside, the field reproduced exactly.
     for (auto it = f.sh[0]->cbeginValueOn(); it; ++it) {
         const openvdb::Vec3d p = it.getCoord().asVec3d();
         EXPECT_NEAR((*it)[0], field(p), 1e-5) << it.getCoord();
@@ -225,9 +237,15 @@ TEST(SolveScale, WriteInterpolatesTrilinearly) {
             for (int x = 0; x < 5; ++x)
                 for (int c = 0; c < 3; ++c) sh5[size_t(x + 5 * (y + 6 * z)) * 3 + c] = sh[size_t(x + 6 * (y + 6 * z)) * 3 + c];
     b.sh = sh5.data();
-    writeBake(*density, b, openvdb::MetaMap(), wo);
+    rep = writeBake(*density, b, openvdb::MetaMap(), wo);
     const BakeFile f5 = readBakeFile(wo.path);
     auto acc = f5.sh[0]->getConstAccessor();
     const openvdb::Coord c7(7, 3, 4);
     EXPECT_NEAR(acc.getValue(c7)[0], field(openvdb::Vec3d(6.5, 3, 4)), 1e-5) << "clamped to the border centre";
+    // The shell voxels beyond the last centre (the x = 8 plane, 10x10, and the x = 7 ring
+    // around the density's face, 10x10 - 8x8) would be clamped too, i.e. extrapolated: they
+    // are left out instead; the density's own voxels (x = 7) stay.
+    EXPECT_EQ(rep.shellDropped, 100u + 36u);
+    EXPECT_FALSE(acc.isValueOn(openvdb::Coord(8, 3, 4)));
+    EXPECT_TRUE(acc.isValueOn(openvdb::Coord(-1, 3, 4)));
 }

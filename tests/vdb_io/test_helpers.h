@@ -61,6 +61,27 @@ inline openvdb::FloatGrid::Ptr cubeGrid(int n, float value, double voxel = 1.0, 
     return g;
 }
 
+/// Checks that `g` (a lighting grid of a bake) is active exactly on the active voxels of
+/// `density` and every voxel within one voxel of one along each axis (the 26-neighbour
+/// shell, docs/output_format.md "Topology"), built here voxel by voxel.
+template <typename GridT>
+void expectLightingTopology(const GridT& g, const openvdb::FloatGrid& density) {
+    openvdb::MaskGrid want(false);
+    auto acc = want.getAccessor();
+    for (auto it = density.cbeginValueOn(); it; ++it) {
+        openvdb::CoordBBox b = it.getBoundingBox();  // one voxel, or an active tile
+        b.expand(1);
+        for (auto c = b.begin(); c; ++c) acc.setValueOn(*c);
+    }
+    openvdb::MaskGrid missing(false), extra(false);
+    missing.tree().topologyUnion(want.tree());
+    missing.tree().topologyDifference(g.tree());
+    extra.tree().topologyUnion(g.tree());
+    extra.tree().topologyDifference(want.tree());
+    EXPECT_EQ(missing.activeVoxelCount(), 0u) << g.getName() << ": voxels of the shell not written";
+    EXPECT_EQ(extra.activeVoxelCount(), 0u) << g.getName() << ": voxels beyond the shell";
+}
+
 /// Centre direction (toward the light) of lat-long pixel (x, y) of a WxH image, written
 /// from the OpenEXR ImfEnvmap formulas independently of core/envmap.cpp:
 /// lon = pi - 2 pi u, lat = pi/2 - pi v, d = (cos lat sin lon, sin lat, cos lat cos lon).

@@ -96,6 +96,24 @@ TEST(VolumeReader, MemoryFollowsActiveTilesNotTheBoundingBox) {
     EXPECT_NO_THROW(m.validate());
 }
 
+// The bake writes S on the one-voxel shell around the active voxels, so the sparse block
+// stores every 8^3 tile a shell voxel falls in (the solver computes S there), and only those.
+TEST(VolumeReader, TilesHoldTheLightingShell) {
+    initOpenVdb();
+    auto g = openvdb::FloatGrid::create(0.f);
+    for (int x : {0, 6, 40}) g->tree().setValue(openvdb::Coord(x, 0, 0), 1.f);
+    VolumeInput v;
+    gridToMedium(*g, opts(""), v);  // block x: index -1..41 (pad 1), block voxel = index + 1
+    const Medium& m = v.medium;
+    ASSERT_TRUE(m.sparse());
+    EXPECT_NE(m.index(7, 1, 1), Medium::npos);   // index 6: tile 0
+    EXPECT_NE(m.index(8, 1, 1), Medium::npos);   // index 7, its shell: tile 1, holds no active voxel
+    EXPECT_EQ(m.index(16, 1, 1), Medium::npos);  // tile 2: nothing within a voxel
+    EXPECT_EQ(m.index(39, 1, 1), Medium::npos);  // tile 4 (block 32..39): index 40's shell starts at block 40
+    EXPECT_NE(m.index(42, 1, 1), Medium::npos);  // index 41, the shell of 40: tile 5
+    EXPECT_EQ(m.storedTiles, 3u);
+}
+
 TEST(VolumeReader, RotatedTransformGivesLocalToWorld) {
     initOpenVdb();
     auto g = lpmtest::cubeGrid(3, 1.f, 0.25);

@@ -1,0 +1,83 @@
+// The lighting grids' topology (see lighting_topology.h for the rule and why one voxel).
+#include "vdb_io/lighting_topology.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+
+#include <openvdb/tools/Morphology.h>
+#include <openvdb/tools/Prune.h>
+#include <openvdb/tree/LeafManager.h>
+
+#include "vdb_io/bake_file.h"
+
+namespace lpm {
+
+bool hasSolvedValue(const DenseBake& b, const openvdb::Coord& c) {
+    if (!b.sh) return false;
+    const int n[3] = {b.nx, b.ny, b.nz};
+    if (b.scale == 1.0 && !b.affine) {
+        const openvdb::Coord d = c - b.blockMin;
+        for (int a = 0; a < 3; ++a)
+            if (d[a] < 0 || d[a] >= n[a]) return false;
+        return b.index(d.x(), d.y(), d.z()) != Medium::npos;
+    }
+    // Continuous dense coordinate of c's centre, voxel centres at integers: inside
+    // [0, n - 1] the value is an interpolation between solved voxels, outside a clamp
+    // (1e-6 of a voxel is rounding in the block's placement, not an extrapolation). The
+    // stencil is the one writeBake uses.
+    constexpr double kSlack = 1e-6;
+    int lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+        const double u = b.blockCoord(c, a) - 0.5;
+        if (!(u >= -kSlack && u <= double(n[a] - 1) + kSlack)) return false;
+        lo[a] = std::min(int(std::floor(std::clamp(u, 0.0, double(n[a] - 1)))), std::max(0, n[a] - 2));
+        hi[a] = std::min(lo[a] + 1, n[a] - 1);
+    }
+    for (int k = 0; k < 8; ++k)
+        if (b.index((k & 1) ? hi[0] : lo[0], (k & 2) ? hi[1] : lo[1], (k & 4) ? hi[2] : lo[2]) == Medium::npos)
+            return false;
+    return true;
+}
+
+LightingTopology lightingTopology(const openvdb::FloatGrid& density, const DenseBake& b) {
+    LightingTopology t;
+    t.grid = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
+    t.grid->setTransform(density.transform().copy());
+    t.grid->tree().topologyUnion(density.tree());
+    t.grid->tree().voxelizeActiveTiles();
+    if (!b.sh) return t;
+    const openvdb::Index64 before = t.grid->activeVoxelCount();
+    openvdb::tools::dilateActiveValues(t.grid->tree(), kLightingShell, openvdb::tools::NN_FACE_EDGE_VERTEX,
+                                       openvdb::tools::EXPAND_TILES);
+    // Keep a shell voxel only where the solver computed S (never extrapolate); the
+    // density's own voxels stay whatever happens.
+    std::atomic<std::uint64_t> dropped{0};
+    openvdb::tree::LeafManager<openvdb::Vec3STree> leaves(t.grid->tree());
+    leaves.foreach([&](openvdb::Vec3STree::LeafNodeType& leaf, size_t) {
+        auto acc = density.getConstAccessor();  // accessors are not thread-safe: one per leaf
+        std::uint64_t off = 0;
+        for (auto it = leaf.beginValueOn(); it; ++it) {
+            const openvdb::Coord c = it.getCoord();
+            if (acc.isValueOn(c) || hasSolvedValue(b, c)) continue;
+            it.setValueOff();
+            ++off;
+        }
+        dropped += off;
+    });
+    openvdb::tools::pruneInactive(t.grid->tree());
+    t.shellDropped = dropped;
+    t.shellVoxels = t.grid->activeVoxelCount() - before;
+    return t;
+}
+
+std::uint64_t missingShellVoxels(const openvdb::FloatGrid& density, const openvdb::Vec3SGrid& lighting) {
+    openvdb::MaskGrid need(false);
+    need.tree().topologyUnion(density.tree());
+    openvdb::tools::dilateActiveValues(need.tree(), kLightingShell, openvdb::tools::NN_FACE_EDGE_VERTEX,
+                                       openvdb::tools::EXPAND_TILES);
+    need.tree().topologyDifference(lighting.tree());
+    return need.activeVoxelCount();
+}
+
+}  // namespace lpm

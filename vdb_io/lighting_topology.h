@@ -1,0 +1,51 @@
+// Where the lighting grids of a bake (sh_*, scatter, emission) are active: the density's
+// active voxels dilated by the footprint of trilinear interpolation, so that a renderer
+// interpolating S finds the solver's value at every voxel it reads wherever the
+// interpolated density is non-zero (docs/output_format.md, "Topology").
+//
+// Why one voxel of 26-neighbour dilation is enough: trilinear (BoxSampler) interpolation at
+// an index-space point p reads the 8 voxels of the cell floor(p) + {0,1}^3. The
+// interpolated density at p is non-zero only if one of those 8 carries weight and is
+// active. Any two voxels of one cell differ by at most 1 along every axis (Chebyshev
+// distance 1), so all 8 lie in the 3x3x3 neighbourhood of that active voxel: the 26-
+// neighbour dilation by 1 holds every voxel S is read from at such a point. (Face-only
+// dilation, the 6-neighbourhood, would miss the cell's edge- and corner-diagonal voxels.)
+// A renderer with a wider kernel (tricubic: 4^3 voxels) would need kLightingShell = 2.
+#pragma once
+
+#include <cstdint>
+
+#include <openvdb/openvdb.h>
+
+namespace lpm {
+
+struct DenseBake;
+
+/// Voxels of dilation around the density's active voxels (the trilinear footprint).
+constexpr int kLightingShell = 1;
+
+struct LightingTopology {
+    openvdb::Vec3SGrid::Ptr grid;  ///< zero-valued Vec3f grid on the density's transform, voxelised
+    std::uint64_t shellVoxels = 0;    ///< active voxels added around the density's
+    std::uint64_t shellDropped = 0;   ///< shell voxels left inactive: the solver has no S there
+};
+
+/// The density's active voxels (tiles voxelised) plus every voxel of the kLightingShell
+/// dilation at which `bake` holds values the solver computed (see hasSolvedValue). The
+/// bake's block is built so that none is dropped (vdb_io/volume_reader.h); a count other
+/// than 0 means a hand-made DenseBake too small for the shell. Empty bake (sh null): the
+/// density's topology.
+LightingTopology lightingTopology(const openvdb::FloatGrid& density, const DenseBake& bake);
+
+/// True when the value written at input voxel `c` comes from solved voxels only: at
+/// scale 1, c lies in the block and in an allocated tile; otherwise c's centre lies within
+/// the span of the block's voxel centres (interpolated, not clamped) and every voxel of its
+/// trilinear stencil is stored.
+bool hasSolvedValue(const DenseBake& bake, const openvdb::Coord& c);
+
+/// Voxels of the density's kLightingShell dilation (density's own included) that are not
+/// active in `lighting`: 0 for a bake written by this lpmbake; bakes written before the
+/// shell existed hold S on the density's voxels only and render dark at the edge.
+std::uint64_t missingShellVoxels(const openvdb::FloatGrid& density, const openvdb::Vec3SGrid& lighting);
+
+}  // namespace lpm
