@@ -413,3 +413,26 @@ TEST(Cli, ShearedTransformIsResampledAndMappedBack) {
             }
     EXPECT_LT(worst, 0.02);
 }
+
+// The multi-resolution decision: forced on, it is reported, recorded and visible per pass;
+// a bad value is a usage error.
+TEST(Cli, MultiresIsReportedAndRecorded) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::string out = dir + "/torus_mr.vdb", stats = dir + "/stats.json";
+    auto a = torusArgs(out);
+    a.insert(a.end(), {"--sun", "0.3,0.8,0.5", "--multires", "on", "--stats", stats});
+    const auto r = runLpmbake(a, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find("multi-resolution: orders >= 2 on a 2x coarser grid"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("two-grid:"), std::string::npos) << r.err;
+    const BakeFile b = readBakeFile(out);
+    EXPECT_TRUE(validateBake(b).empty());
+    EXPECT_EQ(metaString(*b.meta, "lpm:multires"), "on");
+    const std::string js = lpmtest::readAll(stats);
+    EXPECT_NE(js.find("\"coarse\": true"), std::string::npos);
+    EXPECT_NE(js.find("\"coarse\": false"), std::string::npos);
+    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", dir + "/x.vdb", "--sun", "0,1,0", "--multires",
+                                   "maybe"},
+                                  dir),
+                       1, "usage", {"--multires", "maybe"});
+}
