@@ -214,7 +214,7 @@ public:
         }
         for (size_t row = 0; row < L_.size(); row += rowStride_)
             for (int c = 0; c < 3; ++c) std::fill_n(&L_[row + c * nuPad], nuPad, bnd_[c]);
-        P_.assign(size_t(g_.nv) * K * tnu_ * kChunk, 0.0f);
+        allocatePlanes();
         spanLo_.assign(size_t(g_.nv), 0);
         spanHi_.assign(size_t(g_.nv), 0);
         stU_.resize(size_t(r));
@@ -263,9 +263,37 @@ private:
         return s < 0 ? -2 : s;
     }
 
-    // Plane offset of the sigma of (row cv, slice s of the layer, column cu).
+    // The planes cover, per tile row tv, only the tiles between the first and the last
+    // allocated one over all layers (rowFirst_, rowWidth_), so a sparse volume in a large box
+    // costs no plane memory for its empty space.
+    void allocatePlanes() {
+        const int tnv = (g_.nv + K - 1) / K, tna = (g_.na + K - 1) / K;
+        rowFirst_.assign(size_t(tnv), 0);
+        rowWidth_.assign(size_t(tnv), 0);
+        rowBase_.assign(size_t(tnv), 0);
+        size_t total = 0;
+        for (int tv = 0; tv < tnv; ++tv) {
+            int first = tnu_, last = -1;
+            for (int layer = 0; layer < tna; ++layer)
+                for (int tu = 0; tu < tnu_; ++tu)
+                    if (tileSlot(layer, tu, tv) != -2) {
+                        first = std::min(first, tu);
+                        last = std::max(last, tu);
+                    }
+            rowFirst_[tv] = last < 0 ? 0 : first;
+            rowWidth_[tv] = last < 0 ? 0 : last - first + 1;
+            rowBase_[tv] = total;
+            total += size_t(rowWidth_[tv]) * K * K * kChunk;
+        }
+        P_.assign(total, 0.0f);
+    }
+
+    // Plane offset of the sigma of (row cv, slice s of the layer, column cu); cu must lie
+    // in an allocated tile's span of its tile row.
     size_t planeIndex(int cv, int s, int cu) const {
-        return (size_t(cv * K + s) * tnu_ + size_t(cu / K)) * kChunk + size_t(cu % K);
+        const int tv = cv / K;
+        return rowBase_[tv] + (size_t((cv % K) * K + s) * rowWidth_[tv] + size_t(cu / K - rowFirst_[tv])) * kChunk +
+               size_t(cu % K);
     }
 
     // Where tile (layer, tu, tv) lies in storage: the storage index of its first voxel,
@@ -472,6 +500,8 @@ private:
     const Geometry g_;
     const float depositScale_;
     int tnu_ = 0, slice_ = 0;
+    std::vector<int> rowFirst_, rowWidth_;  // per tile row: plane tiles (first, count)
+    std::vector<size_t> rowBase_;           // per tile row: offset in P_
     size_t rowStride_ = 0;
     std::vector<float> L_;  // ray radiance
     std::vector<int> pending_;  // per ray row: u crossings not yet applied
