@@ -548,7 +548,11 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
                         p += double(u[(v * nb + d) * M * 3 + c]) * m.sigmaT[v] * m.albedo[c] * ff.binWeight(d) * V;
             return p / 3.0;
         };
-        std::vector<float> r = next, E, tail(next.size(), 0.0f);  // slopes of the tail stay 0
+        // Three source-sized buffers: r (also holds E during the fine pass), the tail (the
+        // source iteration's `unshot`, no longer needed) and next.
+        std::vector<float> r = next;
+        std::vector<float>& tail = unshot;
+        std::fill(tail.begin(), tail.end(), 0.0f);  // slopes of the tail stay 0
         int cycles = 0, coarsePasses = 0, p = firstPass;
         double rPower = res.passes.back().scattered;
         bool coarseConverged = true;
@@ -572,12 +576,11 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
             std::vector<float> tailCoarse = cr.sourceSum;
             for (size_t i = 0; i < tailCoarse.size(); ++i) tailCoarse[i] -= uc[i];
             injectCoarse(m, mc, tailCoarse, nb, M, tail);
-            E = r;
-            for (size_t i = 0; i < E.size(); ++i) E[i] += tail[i];
+            for (size_t i = 0; i < r.size(); ++i) r[i] += tail[i];  // r now holds E
             const auto tf = Clock::now();
             std::fill(next.begin(), next.end(), 0.0f);
             Tally t;
-            runJobsAny(sourceJobs(E), t, true, next);
+            runJobsAny(sourceJobs(r), t, true, next);
             recordPass(p++, t, tf);
             for (size_t i = 0; i < r.size(); ++i) r[i] = next[i] - tail[i];
             rPower = power(r);
