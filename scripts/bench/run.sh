@@ -10,6 +10,7 @@ quick=""; max=64
 if [ "${1:-}" = "--quick" ]; then quick="--quick"; max=32; fi
 echo "== VDB read: layout walk overhead"; ./build/scripts/bench/lpm_bench_vdb_read --n "$((max * 4))" | tee out/bench/vdb_read.md
 echo "== solver speed"; ./build/scripts/bench/lpm_bench_speed "$max" | tee out/bench/speed.md
+echo "== whole bakes against the active voxels"; bash scripts/bench/scale.sh $quick | tee out/bench/scale.md
 echo "== accuracy vs time"; ./build/scripts/bench/lpm_bench_accuracy $quick | tee out/bench/accuracy.md
 if [ -z "$quick" ]; then
   echo "== white furnace, GMRES vs plain iteration"; ./build/scripts/bench/lpm_bench_furnace | tee out/bench/furnace.md
