@@ -194,9 +194,10 @@ void mergeEvents(const std::vector<double>& lu, const std::vector<double>& lv, d
 
 // The state of one sweepStep call: rays, the current tile layer's planes and the tallies.
 // The medium is read and the deposits written one 8^3 tile at a time, in storage order.
-// Planes: voxel row (cv, slice s of the layer) at ((cv * 8 + s) * tnu) chunks, column cu
-// in chunk cu / 8, lane cu % 8. Rays: row (cell v, class) at (cellV r^2 + class) 3 nuPad,
-// lane = column (a u crossing shifts the row), columns >= nu are padding.
+// Planes (planeIndex): per tile row, the chunks of its allocated span over all layers;
+// voxel row (cv, slice s of the layer) holds one chunk per tile of the span, lane cu % 8.
+// Rays: row (cell v, class) at (cellV r^2 + class) 3 nuPad, lane = column (a u crossing
+// shifts the row), columns >= nu are padding.
 class StepSweep {
 public:
     static constexpr int K = Medium::kTile;
@@ -209,7 +210,7 @@ public:
         L_.assign(size_t(r) * r * g_.nv * rowStride_, 0.0f);
         pending_.assign(size_t(r) * r * g_.nv, 0);
         for (int c = 0; c < 3; ++c) {
-            bnd_[c] = (&job.boundary.r)[c];
+            bnd_[c] = job.boundary[c];
             inj_[c] = double(bnd_[c]) * double(size_t(r) * r * g_.nu * g_.nv);  // padding lanes excluded
         }
         for (size_t row = 0; row < L_.size(); row += rowStride_)
