@@ -9,7 +9,9 @@
 #include <iostream>
 #include <sstream>
 
+#include "baker/bake_metadata.h"
 #include "baker/options.h"
+#include "baker/text_format.h"
 #include "core/parallel.h"
 #include "core/sh.h"
 #include "vdb_io/atomic_file.h"
@@ -25,13 +27,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-std::string fmt(double v) {
-    std::ostringstream s;
-    s << std::setprecision(6) << v;
-    return s.str();
-}
-std::string fmtRgb(const RGB& c) { return fmt(c.r) + "," + fmt(c.g) + "," + fmt(c.b); }
-std::string fmtVec(const Vec3& v) { return fmt(v.x) + "," + fmt(v.y) + "," + fmt(v.z); }
 /// One number for cubic voxels, X,Y,Z otherwise.
 std::string fmtVoxelSize(const Vec3& v) {
     return fmt(v.x) == fmt(v.y) && fmt(v.y) == fmt(v.z) ? fmt(v.x) : fmtVec(v);
@@ -44,17 +39,6 @@ long peakRssKiB() {
     struct rusage u {};
     getrusage(RUSAGE_SELF, &u);
     return u.ru_maxrss;  // KiB on Linux
-}
-
-std::string jsonEscape(const std::string& s) {
-    std::string o;
-    for (char c : s) {
-        if (c == '"' || c == '\\') o += '\\', o += c;
-        else if (c == '\n') o += "\\n";
-        else if (static_cast<unsigned char>(c) < 0x20) o += ' ';
-        else o += c;
-    }
-    return o;
 }
 
 void checkOptions(const BakeOptions& o) {
@@ -148,7 +132,7 @@ void writeStats(const BakeOptions& o, const BakeSummary& s, const LpmResult* r) 
 
 }  // namespace
 
-BakeSummary runBake(const BakeOptions& o, const Log& log) {
+BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) {
     checkOptions(o);
     const auto tStart = Clock::now();
     ThreadLimit limit(o.threads);
@@ -202,7 +186,7 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
 
     // 2. Lights.
     t = Clock::now();
-    EnvInput env;
+    std::shared_ptr<EnvInput> envHeld = std::make_shared<EnvInput>();
     if (!o.env.empty()) {
         EnvReadOptions eo;
         eo.path = o.env;
@@ -211,11 +195,28 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
         eo.rotateYDeg = o.envRotateDeg;
         eo.scale = o.envScale;
         eo.sanitize = o.sanitize;
-        env = readEnvironment(eo);
-        for (const auto& w : env.warnings) log.warn(w);
-        log.debug("environment " + o.env + ": " + std::to_string(env.width) + "x" + std::to_string(env.height) +
-                  ", " + env.colorSpace + " -> " + env.workingSpace);
+        const std::string key = o.env + "\n" + o.envColorSpace + "\n" + o.workingSpace + "\n" +
+                                fmtExact(o.envRotateDeg) + "\n" + fmtExact(o.envScale) + "\n" +
+                                std::to_string(o.sanitize);
+        if (context && context->env && context->envKey == key) {
+            envHeld = context->env;
+            sum.envReused = true;
+        } else {
+            *envHeld = readEnvironment(eo);
+            for (const auto& w : envHeld->warnings) log.warn(w);
+            log.debug("environment " + o.env + ": " + std::to_string(envHeld->width) + "x" +
+                      std::to_string(envHeld->height) + ", " + envHeld->colorSpace + " -> " + envHeld->workingSpace);
+            if (context) {
+                // The solver's binnings of the old map are keyed by its address: drop them
+                // before the map goes.
+                if (context->solverCache) context->solverCache->forgetEnvironments();
+                context->env = envHeld;
+                context->envKey = key;
+                ++context->envReads;
+            }
+        }
     }
+    const EnvInput& env = *envHeld;
     sum.secondsEnv = since(t);
     Lights lights;
     lights.env = env.env.get();
@@ -228,6 +229,10 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
     // 3. Solve.
     LpmResult res;
     LpmSettings settings = o.solver;
+    if (context) {
+        if (!context->solverCache) context->solverCache = std::make_shared<LpmCache>();
+        settings.cache = context->solverCache;
+    }
     // Progress: every pass with -v; otherwise, once the solve has run for a second, at
     // most one line a second (farm logs stay short, long interactive runs show life).
     const auto solveStart = Clock::now();
@@ -263,115 +268,7 @@ BakeSummary runBake(const BakeOptions& o, const Log& log) {
                  fmt(res.residual) + " above --tolerance " + fmt(o.solver.tolerance) + " (raise --max-orders)");
 
     // 4. Metadata: everything a consumer needs to use the bake without this tool.
-    openvdb::MetaMap meta;
-    auto str = [&](const std::string& k, const std::string& v) { meta.insertMeta("lpm:" + k, openvdb::StringMetadata(v)); };
-    auto dbl = [&](const std::string& k, double v) { meta.insertMeta("lpm:" + k, openvdb::DoubleMetadata(v)); };
-    auto i32 = [&](const std::string& k, int v) { meta.insertMeta("lpm:" + k, openvdb::Int32Metadata(v)); };
-    auto rgb = [&](const std::string& k, const RGB& c) {
-        meta.insertMeta("lpm:" + k, openvdb::Vec3DMetadata(openvdb::Vec3d(c.r, c.g, c.b)));
-    };
-    i32("format_version", kBakeFormatVersion);
-    str("version", std::string("lpmbake ") + LPM_VERSION_STRING);
-    i32("sh_order", res.shOrder);
-    i32("sh_count", res.coeffs);
-    str("sh_basis", "real orthonormal spherical harmonics, ACN index k = l*l + l + m, no Condon-Shortley phase; "
-                    "Y0 = 0.282095, Y1 = 0.488603 y, Y2 = 0.488603 z, Y3 = 0.488603 x (solver_notes section 5); "
-                    "directions in world space (the grids' transform frame)");
-    str("sh_grids", "sh_0 .. sh_" + std::to_string(res.coeffs - 1) + ": Vec3f, RGB in xyz");
-    str("sh_negative_lobes", "coefficients are not windowed; evaluating S may give small negative values: clamp "
-                             "at zero when shading (lpmbake render does)");
-    str("quantity", "S(x,w) = Int p(w,w') L(x,w') dw': phase-weighted in-scattered radiance, w = direction in "
-                    "which light travels; does not contain sigma_s");
-    str("usage", "renderer adds sigma_s(x)*S(x,-view) per unit length along a camera ray with direction view, "
-                 "sigma_s = albedo * density * density_scale; scatter = direction-averaged S for shaders that use "
-                 "it as emission (multiply by sigma_s)");
-    str("units", "S: radiance in the working colour space (environment pixels * env_scale, sun irradiance per "
-                 "steradian); lengths: world units of the grid transform; sigma_t = density * density_scale per "
-                 "world unit");
-    str("frame", "world");
-    str("working_colorspace", env.workingSpace.empty() ? o.workingSpace : env.workingSpace);
-    str("density_grid", o.noDensity ? "" : "density");
-    dbl("density_scale", o.densityScale);
-    rgb("albedo", o.albedo);
-    dbl("g", o.g);
-    str("phase_function", "Henyey-Greenstein");
-    std::string lightsDesc;
-    if (!o.env.empty()) {
-        str("env_file", o.env);
-        str("env_colorspace", env.colorSpace);
-        dbl("env_rotate_y_deg", o.envRotateDeg);
-        dbl("env_scale", o.envScale);
-        str("env_orientation", "lat-long, OpenEXR ImfEnvmap convention, +Y up");
-        lightsDesc += "environment '" + o.env + "' (" + env.colorSpace + ", rotate " + fmt(o.envRotateDeg) +
-                      " deg, scale " + fmt(o.envScale) + ")";
-    }
-    i32("sun_count", int(o.suns.size()));
-    std::string sunsDesc;
-    for (size_t i = 0; i < o.suns.size(); ++i) {
-        const auto& s = o.suns[i];
-        sunsDesc += (i ? "; " : "") + std::string("toward ") + fmtVec(normalize(s.toSun)) + " irradiance " +
-                    fmtRgb(s.irradiance) + " angle " + fmt(s.angleDeg) + " deg";
-    }
-    if (!o.suns.empty()) {
-        str("suns", sunsDesc);
-        lightsDesc += std::string(lightsDesc.empty() ? "" : "; ") + "suns: " + sunsDesc;
-    }
-    if (!o.temperatureGrid.empty()) {
-        str("temperature_grid", o.temperatureGrid);
-        dbl("temperature_scale", o.temperatureScale);
-        dbl("temperature_offset", o.temperatureOffset);
-        dbl("temperature_intensity", o.temperatureIntensity);
-        str("temperature_convention", "Kelvin = value * temperature_scale + temperature_offset; L_e = "
-                                      "temperature_intensity * black body (Planck x CIE 1931), 6500 K -> luminance 1, "
-                                      "in the working colour space; written as grid 'emission'");
-        lightsDesc += std::string(lightsDesc.empty() ? "" : "; ") + "temperature grid '" + o.temperatureGrid + "'";
-    }
-    if (!o.emissionGrid.empty()) {
-        str("emission_grid", o.emissionGrid);
-        dbl("emission_scale", o.emissionScale);
-        str("emission_convention", "emitted radiance L_e = value * emission_scale; source term sigma_a * L_e "
-                                   "(pbrt-v4); written as grid 'emission'");
-        lightsDesc += std::string(lightsDesc.empty() ? "" : "; ") + "emission grid '" + o.emissionGrid + "'";
-    }
-    str("lights", lightsDesc);
-    i32("directions_per_face", o.solver.directionsPerFace);
-    i32("rays_per_voxel", o.solver.raysPerVoxel);
-    i32("bins_per_face", o.solver.binsPerFace);
-    dbl("tolerance", o.solver.tolerance);
-    i32("max_orders", o.solver.maxOrders);
-    i32("subdivide", o.solver.subdivide);
-    str("multires", o.solver.multires < 0 ? "auto" : (o.solver.multires ? "on" : "off"));
-    i32("multires_after", o.solver.multiresAfter);
-    str("source_shape", o.solver.linearSource < 0 ? "auto" : (o.solver.linearSource ? "linear" : "constant"));
-    str("delta_m", o.solver.deltaM < 0 ? "auto" : (o.solver.deltaM ? "on" : "off"));
-    dbl("env_hot_share", o.solver.envHotShare);
-    dbl("solve_scale", o.solveScale);
-    meta.insertMeta("lpm:solve_grid_dims",
-                    openvdb::Vec3IMetadata(openvdb::Vec3i(sum.solveDims[0], sum.solveDims[1], sum.solveDims[2])));
-    meta.insertMeta("lpm:solve_voxel_size", openvdb::Vec3DMetadata(openvdb::Vec3d(
-                                                 sum.solveVoxelSize.x, sum.solveVoxelSize.y, sum.solveVoxelSize.z)));
-    meta.insertMeta("lpm:krylov", openvdb::BoolMetadata(o.solver.krylov));
-    str("solver", "Light Propagation Maps (discrete ordinates, source iteration with GMRES acceleration); " +
-                      std::to_string(res.directionCount) + " directions, " + std::to_string(res.binCount) +
-                      " unshot bins");
-    i32("passes", sum.passes);
-    dbl("residual", res.residual);
-    meta.insertMeta("lpm:converged", openvdb::BoolMetadata(res.converged));
-    std::string dec;
-    for (const auto& d : res.decisions) dec += (dec.empty() ? "" : "; ") + d;
-    str("decisions", dec);
-    str("input_file", o.input);
-    str("input_grid", o.grid);
-    i32("input_grid_index", std::max(0, o.gridIndex));
-    meta.insertMeta("lpm:empty", openvdb::BoolMetadata(vol.empty));
-    meta.insertMeta("lpm:sanitized_values", openvdb::Int64Metadata(openvdb::Int64(vol.sanitized + env.sanitized)));
-    str("storage", o.half ? "half" : "float32");
-    dbl("time_read_s", sum.secondsRead);
-    dbl("time_env_s", sum.secondsEnv);
-    dbl("time_solve_s", sum.secondsSolve);
-    str("timings", "read " + fmt(sum.secondsRead) + " s, environment " + fmt(sum.secondsEnv) + " s, solve " +
-                       fmt(sum.secondsSolve) + " s");
-    if (!o.commandLine.empty()) str("command_line", o.commandLine);
+    const openvdb::MetaMap meta = bakeMetadata(o, sum, res, env, vol.sanitized + env.sanitized);
 
     // 5. Write.
     DenseBake db;

@@ -10,7 +10,9 @@
 #include <CLI/CLI.hpp>
 #include <openvdb/Exceptions.h>
 
+#include "baker/frame_pattern.h"
 #include "baker/options.h"
+#include "baker/sequence.h"
 #include "vdb_io/io_error.h"
 
 namespace lpm {
@@ -24,6 +26,7 @@ void Log::note(const std::string& m) const {
 void Log::debug(const std::string& m) const {
     if (verbosity >= 2) std::cerr << "lpmbake: " << m << "\n";
 }
+void Log::error(const std::string& m) const { std::cerr << "lpmbake: error: " << m << "\n"; }
 
 namespace {
 
@@ -104,6 +107,8 @@ std::string oneLine(const std::string& in) {
     return s;
 }
 
+bool fileExists(const std::string& path) { return ::access(path.c_str(), F_OK) == 0; }
+
 int fail(int code, const std::string& what) {
     std::cerr << "lpmbake: error: " << oneLine(what) << "\n";
     return code;
@@ -115,7 +120,8 @@ const char* kDescription = R"(NAME
 SYNOPSIS
   lpmbake IN.vdb [--env SKY.exr] [--sun DX,DY,DZ ...] -o OUT.vdb [options]
   lpmbake render BAKED.vdb [--eye X,Y,Z --target X,Y,Z] --fov-y DEG --size WxH [--env SKY.exr] -o IMAGE.exr|.png
-  lpmbake info BAKED.vdb
+  lpmbake IN.####.vdb --frames 1001-1100 [--skip-existing] [--keep-going] -o OUT.####.vdb [options]
+  lpmbake info [--digest] BAKED.vdb
 
 DESCRIPTION
   Reads a float density grid, solves the radiative transfer equation with Light
@@ -143,6 +149,8 @@ EXIT STATUS
   2  input error (unreadable file, missing grid, bad values, not a valid bake for info)
   3  output error (cannot write, or the output path is an input file)
   4  internal error (out of memory, unexpected failure)
+  5  some frames of a sequence of several failed (they are listed at the end; a
+     one-frame run exits with that frame's code instead)
   Errors are printed as one line: lpmbake: error: <component>: <message>
 
 ENVIRONMENT
@@ -153,11 +161,19 @@ OUTPUT
   The output appears atomically: it is written to .NAME.lpmtmp-PID.EXT in the output
   directory and renamed when complete. The input is never overwritten.
 
+SEQUENCES
+  Frame patterns in IN, -o, --env and --stats: #### (4 digits, zero-padded), @@@ (one
+  digit per @), %04d, $F4 (Houdini; quote it). --frames takes 1001-1100, 1-50x2
+  (step) and lists 1,5,9-12; --frame N is one frame. Each frame is written
+  atomically; --skip-existing keeps outputs that are valid bakes of the same settings
+  (lpm:settings_digest), newer than their inputs. See docs/farm.md.
+
 EXAMPLES
   lpmbake cloud.vdb --env sky.exr --sun 0.3,0.8,0.5 --sun-irradiance 5 -o cloud_lit.vdb
   lpmbake torus.vdb --grid voxel_fog_density --env sky.hdr --g 0.6 --sh-order 2 -o out.vdb
   lpmbake torus.vdb --grid voxel_fog_density --env sky.hdr --solve-scale 0.5 -o preview.vdb
   lpmbake render out.vdb --eye 0,0,8 --target 0,0,0 --fov-y 40 --size 512x512 -o out.png
+  lpmbake 'smoke.$F4.vdb' --frames 1001-1240 --env sky.exr --skip-existing -o 'lit.$F4.vdb'
   lpmbake info out.vdb)";
 
 }  // namespace
@@ -278,6 +294,24 @@ int runCli(int argc, char** argv) {
                    "input's voxels")
         ->default_val("1")->type_name("FLOAT")->group(gS);
 
+    SequenceOptions seq;
+    std::string frames;
+    int oneFrame = 0;
+    auto* gF = "Sequences (docs/farm.md)";
+    auto* framesOpt = app.add_option("--frames", frames, "frames to bake: 1001-1100, 1-50x2, 1,5,9-12; paths hold "
+                                                         "#### @ %04d or $F4")->group(gF);
+    auto* frameOpt = app.add_option("--frame", oneFrame, "one frame (as --frames N)")->group(gF);
+    framesOpt->excludes(frameOpt);
+    app.add_flag("--skip-existing", seq.skipExisting,
+                 "keep outputs that are complete bakes of the same settings, newer than their inputs")->group(gF);
+    app.add_flag("--keep-going", seq.keepGoing, "bake the remaining frames after one fails (exit 5 at the end)")
+        ->group(gF);
+    app.add_option("--frame-log", seq.frameLog, "one JSON line per frame: FILE (may hold a pattern) or - (stdout)")
+        ->group(gF);
+    app.add_flag("--list-pending", seq.listPending,
+                 "print the frames whose output is missing, invalid, stale or of other settings (as 2,5-7); bake "
+                 "nothing")->group(gF);
+
     auto* gO = "Output and run";
     app.add_flag("--half", b.half, "store 16-bit floats (warns when values exceed 65504)")->group(gO);
     app.add_flag("--no-density", b.noDensity, "do not copy the density grid into the output")->group(gO);
@@ -310,6 +344,9 @@ int runCli(int argc, char** argv) {
     InfoOptions in;
     CLI::App* info = app.add_subcommand("info", "describe a bake; exit 2 if it is not a valid one");
     info->add_option("bake", in.bake, "baked VDB")->required();
+    info->add_flag("--digest", in.digest,
+                   "print only the digest of the bake's content (grids and settings, not timings): equal digests, "
+                   "equal bakes");
     info->add_flag("-q,--quiet", quiet, "errors only");
 
     try {
@@ -362,6 +399,15 @@ int runCli(int argc, char** argv) {
             b.suns.push_back(s);
         }
         for (int i = 0; i < argc; ++i) b.commandLine += (i ? " " : "") + std::string(argv[i]);
+        if (!frames.empty() || *frameOpt) {
+            seq.bake = b;
+            seq.frames = *frameOpt ? std::vector<int>{oneFrame} : parseFrameList(frames);
+            return runSequence(seq, log, std::cout);
+        }
+        if (seq.skipExisting || seq.keepGoing || seq.listPending || !seq.frameLog.empty())
+            throw UsageError("--skip-existing, --keep-going, --frame-log and --list-pending need --frames or --frame");
+        if (hasFramePattern(b.input) && !fileExists(b.input))
+            throw UsageError("input '" + b.input + "' has a frame pattern: give --frames A-B or --frame N");
         runBake(b, log);
         return kExitOk;
     } catch (const UsageError& e) {

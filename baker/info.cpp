@@ -7,6 +7,7 @@
 #include <ostream>
 
 #include "baker/options.h"
+#include "vdb_io/bake_digest.h"
 #include "vdb_io/bake_file.h"
 
 namespace lpm {
@@ -50,6 +51,16 @@ Range scan(const GridT& g, int channels, F get) {
 int runInfo(const InfoOptions& o, std::ostream& out, const Log& log) {
     if (o.bake.empty()) throw UsageError("info: no file given");
     BakeFile f = readBakeFile(o.bake);  // throws InputError for unreadable files
+    if (o.digest) {
+        const std::vector<std::string> problems = validateBake(f);
+        if (!problems.empty()) {
+            std::cerr << "lpmbake: error: info: '" << o.bake << "' is not a valid lpmbake bake: " << problems.front()
+                      << "\n";
+            return kExitInput;
+        }
+        out << hex64(bakeContentDigest(f)) << "\n";
+        return kExitOk;
+    }
     out << "file: " << o.bake << "\n";
     out << "grids: " << f.grids.size() << "\n";
     std::uint64_t nonFinite = 0;

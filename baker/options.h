@@ -4,10 +4,12 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "core/error.h"
+#include "core/lpm_cache.h"
 #include "core/lpm_solver.h"
 #include "core/math.h"
 
@@ -28,6 +30,7 @@ struct Log {
     void warn(const std::string& m) const;   ///< "lpmbake: warning: m" (verbosity >= 1)
     void note(const std::string& m) const;   ///< "lpmbake: m" (verbosity >= 1)
     void debug(const std::string& m) const;  ///< "lpmbake: m" (verbosity >= 2)
+    void error(const std::string& m) const;  ///< "lpmbake: error: m" (always)
 };
 
 struct SunOption {
@@ -77,6 +80,7 @@ struct BakeSummary {
     int solveDims[3] = {0, 0, 0};  ///< the solve block (0 for an empty bake)
     Vec3 solveVoxelSize{0, 0, 0};  ///< its voxel size, world units (input voxel size / solveScale)
     double secondsRead = 0, secondsEnv = 0, secondsSolve = 0, secondsWrite = 0, secondsTotal = 0;
+    bool envReused = false;  ///< the environment came from the sequence's context
     long peakRssKiB = 0;
 };
 
@@ -92,10 +96,24 @@ struct RenderOptions {
 
 struct InfoOptions {
     std::string bake;
+    bool digest = false;  ///< print only the content digest (vdb_io/bake_digest.h)
 };
 
-/// Bakes; throws lpm::Error subclasses (UsageError, InputError, OutputError).
-BakeSummary runBake(const BakeOptions& options, const Log& log);
+struct EnvInput;
+
+/// Work shared by the frames of a sequence (baker/sequence.cpp): the environment, read
+/// and converted once per distinct file and colour options, and the solver's
+/// precomputations (core/lpm_cache.h). A bake gives the same output with or without one.
+struct BakeContext {
+    std::string envKey;  ///< what `env` was read from (path and read options)
+    std::shared_ptr<EnvInput> env;
+    std::shared_ptr<LpmCache> solverCache;
+    int envReads = 0;  ///< environments read so far (reported by sequences)
+};
+
+/// Bakes; throws lpm::Error subclasses (UsageError, InputError, OutputError). `context`
+/// (optional) carries work over from earlier frames of a sequence.
+BakeSummary runBake(const BakeOptions& options, const Log& log, BakeContext* context = nullptr);
 /// Renders a preview image of a bake; throws like runBake.
 void runRender(const RenderOptions& options, const Log& log);
 /// Prints a report to `out`; returns kExitOk for a valid bake, kExitInput otherwise.

@@ -15,6 +15,7 @@
 #include <cstring>
 #include <limits>
 
+#include "core/lpm_cache.h"
 #include "core/multires.h"
 #include "core/parallel.h"
 #include "core/quadrature.h"
@@ -183,9 +184,9 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
     }
     const int M = linear ? 4 : 1;  // per bin: mean, or mean and x, y, z slopes
     const CubeQuadrature quad(s.directionsPerFace);
-    std::unique_ptr<CubeQuadrature> binQuad;
-    if (binsPerFace > 0) binQuad.reset(new CubeQuadrature(binsPerFace));
-    const FormFactors ff(quad, binQuad.get(), m.g);
+    std::shared_ptr<LpmCache> cache = s.cache ? s.cache : std::make_shared<LpmCache>();
+    const std::shared_ptr<const FormFactors> formFactors = cache->formFactors(s.directionsPerFace, binsPerFace, m.g);
+    const FormFactors& ff = *formFactors;
     const int nd = quad.count(), nb = ff.binCount(), nc = res.coeffs;
     res.directionCount = nd;
     res.binCount = nb;
@@ -206,60 +207,22 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         }
     }
 
-    // Environment radiance box-filtered over each direction bin (light travelling along
-    // local w arrives from world direction -R w). Every sub-pixel lands in one bin.
+    // Environment radiance box-filtered over each direction bin (core/env_binning.h).
     std::vector<RGB> envBin(nd, RGB(0.f));
     const bool hasEnv = lights.env && lights.env->integral() > 0;
     std::vector<Sun> suns = lights.suns;  // and the environment's hot pixels
     if (hasEnv) {
-        const EnvMap& env = *lights.env;
-        // Sub-pixels fine enough that each direction bin gets >= ~1024 of them; each bin's
-        // radiance is the solid-angle-weighted mean over the sub-pixels it received, so a
-        // constant environment gives exactly constant bins and a one-pixel hot spot lands
-        // in the bin that contains it.
-        const double pixels = double(env.width()) * env.height();
-        const int sub = std::clamp(int(std::ceil(std::sqrt(1024.0 * nd / pixels))), 1, 256);
-        // Hot pixels (a sun in an HDRI): binned, their light would travel along the bin's
-        // directions, up to half a bin off, and cast shifted shadows (ray effects). They
-        // are taken out of the bins and swept like suns in their own direction, with the
-        // pixel's solid angle as the disc.
-        std::vector<unsigned char> skip;
-        if (s.envHotShare > 0) {
-            // Only pixels well inside one direction bin (a quarter of its solid angle):
-            // a larger pixel is resolved by the bins as well as by a disc.
-            std::vector<EnvHotPixel> hot = env.hotPixels(s.envHotShare, 16);
-            const double maxOmega = 0.25 * kFourPi / nd;
-            hot.erase(std::remove_if(hot.begin(), hot.end(), [&](const EnvHotPixel& h) { return h.omega > maxOmega; }),
-                      hot.end());
-            double share = 0;
-            for (const EnvHotPixel& h : hot) {
-                if (skip.empty()) skip.assign(size_t(env.width()) * env.height(), 0);
-                skip[size_t(h.y) * env.width() + h.x] = 1;
-                const double half = std::acos(std::max(-1.0, 1 - h.omega / (2 * kPi)));
-                suns.push_back({h.toward, h.radiance * float(h.omega), 2 * half * 180.0 / kPi});
-                share += h.share;
-            }
-            if (!hot.empty()) {
-                char buf[200];
-                std::snprintf(buf, sizeof buf,
-                              "environment: %zu hot pixel(s) with %.1f%% of its power swept as suns in their exact "
-                              "direction (each >= %.3g of the power)",
-                              hot.size(), 100 * share, s.envHotShare);
-                res.decisions.push_back(buf);
-            }
-        }
-        std::vector<double> acc(size_t(nd) * 4, 0.0);
-        env.forEachSubPixel(
-            sub,
-            [&](const Vec3& toward, double omega, const RGB& L) {
-                const int i = quad.indexOf(Rinv * (-toward));
-                for (int c = 0; c < 3; ++c) acc[size_t(i) * 4 + c] += L[c] * omega;
-                acc[size_t(i) * 4 + 3] += omega;
-            },
-            skip.empty() ? nullptr : &skip);
-        for (int i = 0; i < nd; ++i) {
-            const double om = acc[size_t(i) * 4 + 3];
-            for (int c = 0; c < 3; ++c) envBin[i][c] = om > 0 ? float(acc[size_t(i) * 4 + c] / om) : 0.0f;
+        const std::shared_ptr<const EnvBinning> binned =
+            cache->envBinning(*lights.env, s.directionsPerFace, Rinv, s.envHotShare);
+        envBin = binned->radiance;
+        suns.insert(suns.end(), binned->hotSuns.begin(), binned->hotSuns.end());
+        if (!binned->hotSuns.empty()) {
+            char buf[200];
+            std::snprintf(buf, sizeof buf,
+                          "environment: %zu hot pixel(s) with %.1f%% of its power swept as suns in their exact "
+                          "direction (each >= %.3g of the power)",
+                          binned->hotSuns.size(), 100 * binned->hotShare, s.envHotShare);
+            res.decisions.push_back(buf);
         }
     } else {
         if (!initialSource) res.decisions.push_back("no environment pass: no environment light");
@@ -535,6 +498,7 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         const Medium mc = coarsen(m);
         LpmSettings cs = s;
         cs.multires = 0;
+        cs.cache = cache;
         cs.binsPerFace = binsPerFace;  // the restricted source is in these bins
         const int n = s.directionsPerFace, half = n / 2;
         cs.directionsPerFace =
@@ -594,9 +558,10 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         char buf[300];
         std::snprintf(buf, sizeof buf,
                       "two-grid: coarse grid %dx%dx%d with %d directions per face, %d cycle(s) of coarse orders and "
-                      "one fine pass, %d coarse passes; source left %.3g of the input; %.2f s",
+                      "one fine pass, %d coarse passes; source left %.3g of the input",
                       mc.nx, mc.ny, mc.nz, cs.directionsPerFace, cycles, coarsePasses,
-                      res.injected > 0 ? std::fabs(rPower) / res.injected : 0.0, secondsSince(tp));
+                      res.injected > 0 ? std::fabs(rPower) / res.injected : 0.0);
+        if (s.progress) s.progress("two-grid: " + std::to_string(secondsSince(tp)) + " s");
         res.decisions.push_back(buf);
         coarseDone = true;
     };

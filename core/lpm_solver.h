@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,8 @@
 #include "core/sh.h"
 
 namespace lpm {
+
+class LpmCache;
 
 struct LpmSettings {
     int directionsPerFace = 4;  ///< n: n x n propagation directions per cube face (6 n^2 in all)
@@ -44,6 +47,9 @@ struct LpmSettings {
     int subdivide = 1;          ///< solve on voxels split k x k x k (same medium), average back: for
                                 ///< optically thick voxels, where a voxel-constant source leaks light
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass
+    /// Optional: precomputations shared between solves (the frames of a sequence); the
+    /// results are the same without it.
+    std::shared_ptr<LpmCache> cache;
 };
 
 struct PassStats {

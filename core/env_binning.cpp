@@ -1,0 +1,53 @@
+// Environment binning (env_binning.h).
+#include "core/env_binning.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace lpm {
+
+EnvBinning binEnvironment(const EnvMap& env, const CubeQuadrature& quad, const Mat3& Rinv, double hotShare) {
+    const int nd = quad.count();
+    EnvBinning out;
+    out.radiance.assign(nd, RGB(0.f));
+    // Sub-pixels fine enough that each direction bin gets >= ~1024 of them; each bin's
+    // radiance is the solid-angle-weighted mean over the sub-pixels it received, so a
+    // constant environment gives exactly constant bins and a one-pixel hot spot lands
+    // in the bin that contains it.
+    const double pixels = double(env.width()) * env.height();
+    const int sub = std::clamp(int(std::ceil(std::sqrt(1024.0 * nd / pixels))), 1, 256);
+    // Hot pixels: binned, their light would travel along the bin's directions, up to half
+    // a bin off, and cast shifted shadows (ray effects). Only pixels well inside one
+    // direction bin (a quarter of its solid angle) qualify: a larger pixel is resolved by
+    // the bins as well as by a disc.
+    std::vector<unsigned char> skip;
+    if (hotShare > 0) {
+        std::vector<EnvHotPixel> hot = env.hotPixels(hotShare, 16);
+        const double maxOmega = 0.25 * kFourPi / nd;
+        hot.erase(std::remove_if(hot.begin(), hot.end(), [&](const EnvHotPixel& h) { return h.omega > maxOmega; }),
+                  hot.end());
+        for (const EnvHotPixel& h : hot) {
+            if (skip.empty()) skip.assign(size_t(env.width()) * env.height(), 0);
+            skip[size_t(h.y) * env.width() + h.x] = 1;
+            const double half = std::acos(std::max(-1.0, 1 - h.omega / (2 * kPi)));
+            out.hotSuns.push_back({h.toward, h.radiance * float(h.omega), 2 * half * 180.0 / kPi});
+            out.hotShare += h.share;
+        }
+    }
+    std::vector<double> acc(size_t(nd) * 4, 0.0);
+    env.forEachSubPixel(
+        sub,
+        [&](const Vec3& toward, double omega, const RGB& L) {
+            const int i = quad.indexOf(Rinv * (-toward));
+            for (int c = 0; c < 3; ++c) acc[size_t(i) * 4 + c] += L[c] * omega;
+            acc[size_t(i) * 4 + 3] += omega;
+        },
+        skip.empty() ? nullptr : &skip);
+    for (int i = 0; i < nd; ++i) {
+        const double om = acc[size_t(i) * 4 + 3];
+        for (int c = 0; c < 3; ++c) out.radiance[i][c] = om > 0 ? float(acc[size_t(i) * 4 + c] / om) : 0.0f;
+    }
+    return out;
+}
+
+}  // namespace lpm
