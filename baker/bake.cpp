@@ -1,6 +1,4 @@
 // `lpmbake IN.vdb ...`: read the density and lights, solve, write the bake (+ stats).
-#include <sys/resource.h>
-
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +9,7 @@
 
 #include "baker/bake_metadata.h"
 #include "baker/options.h"
+#include "baker/peak_memory.h"
 #include "baker/text_format.h"
 #include "core/parallel.h"
 #include "core/sh.h"
@@ -35,11 +34,6 @@ std::string fmtDims(const int d[3]) {
     return std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" + std::to_string(d[2]);
 }
 
-long peakRssKiB() {
-    struct rusage u {};
-    getrusage(RUSAGE_SELF, &u);
-    return u.ru_maxrss;  // KiB on Linux
-}
 
 void checkOptions(const BakeOptions& o) {
     if (o.input.empty()) throw UsageError("no input VDB given");

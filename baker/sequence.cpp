@@ -11,6 +11,7 @@
 
 #include "baker/bake_metadata.h"
 #include "baker/frame_pattern.h"
+#include "baker/peak_memory.h"
 #include "baker/text_format.h"
 #include "vdb_io/atomic_file.h"
 #include "vdb_io/bake_file.h"
@@ -28,23 +29,6 @@ long long mtimeNs(const std::string& path) {
     if (path.empty() || ::stat(path.c_str(), &st) != 0) return -1;
     return static_cast<long long>(st.st_mtim.tv_sec) * 1000000000LL + st.st_mtim.tv_nsec;
 }
-
-/// The peak resident set size of this process since the last reset (VmHWM), KiB.
-long peakRssSinceResetKiB() {
-    std::ifstream f("/proc/self/status");
-    std::string key;
-    while (f >> key) {
-        if (key == "VmHWM:") {
-            long kib = 0;
-            f >> kib;
-            return kib;
-        }
-        f.ignore(1 << 12, '\n');
-    }
-    return 0;
-}
-/// Starts a new peak for the next frame (Linux >= 4.0; ignored where not allowed).
-void resetPeakRss() { std::ofstream("/proc/self/clear_refs") << "5"; }
 
 struct FrameRecord {
     int frame = 0;
@@ -200,7 +184,7 @@ FrameRecord bakeFrame(const SequenceOptions& s, int frame, const Log& log, BakeC
         log.error("frame " + std::to_string(frame) + ": " + r.detail);
     }
     r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-    r.peakRssKiB = peakRssSinceResetKiB();
+    r.peakRssKiB = peakRssKiB();
     return r;
 }
 
