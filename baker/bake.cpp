@@ -131,6 +131,7 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
     const auto tStart = Clock::now();
     ThreadLimit limit(o.threads);
     BakeSummary sum;
+    sum.threads = maxThreads();
     {
         // Fail on an impossible output path before the expensive work.
         AtomicOutput probe(o.output, {o.input, o.env});

@@ -80,7 +80,8 @@ struct BakeSummary {
     int solveDims[3] = {0, 0, 0};  ///< the solve block (0 for an empty bake)
     Vec3 solveVoxelSize{0, 0, 0};  ///< its voxel size, world units (input voxel size / solveScale)
     double secondsRead = 0, secondsEnv = 0, secondsSolve = 0, secondsWrite = 0, secondsTotal = 0;
-    bool envReused = false;  ///< the environment came from the sequence's context
+    bool envReused = false;
+    int threads = 0;  ///< worker threads the bake ran with  ///< the environment came from the sequence's context
     long peakRssKiB = 0;
 };
 

@@ -45,7 +45,7 @@ std::string jsonLine(const FrameRecord& r) {
     j << std::setprecision(9);
     j << "{\"frame\": " << r.frame << ", \"status\": \"" << r.status << "\", \"seconds\": " << r.seconds;
     if (r.status == "baked")
-        j << ", \"passes\": " << r.summary.passes << ", \"residual\": " << r.summary.residual
+        j << ", \"threads\": " << r.summary.threads << ", \"passes\": " << r.summary.passes << ", \"residual\": " << r.summary.residual
           << ", \"converged\": " << (r.summary.converged ? "true" : "false") << ", \"empty\": "
           << (r.summary.empty ? "true" : "false") << ", \"peak_rss_mib\": " << double(r.peakRssKiB) / 1024.0
           << ", \"environment_reused\": " << (r.summary.envReused ? "true" : "false");
@@ -138,9 +138,13 @@ public:
         } else if (file_.is_open()) {
             file_ << line << std::flush;
         } else {
-            std::ofstream f(expandFramePattern(path_, r.frame), std::ios::trunc);
+            const std::string path = expandFramePattern(path_, r.frame);
+            std::ofstream f(path, std::ios::trunc);
             f << line;
+            f.close();
+            if (!f) throw OutputError("frame log", "cannot write '" + path + "'");
         }
+        if (file_.is_open() && !file_) throw OutputError("frame log", "cannot write '" + path_ + "'");
     }
 
 private:

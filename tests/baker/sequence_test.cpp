@@ -137,13 +137,14 @@ TEST(Sequence, EnvironmentReadOncePerSequenceAndOneJsonLinePerFrame) {
     const std::string dir = lpmtest::scratchDir(), in = copyFrames(dir);
     const std::string log = dir + "/frames.jsonl";
     const auto r = runLpmbake(
-        seqArgs(in, dir + "/lit.%04d.vdb", "1-3", {"--stats", dir + "/seq.json", "--frame-log", log, "-q"}), dir);
+        seqArgs(in, dir + "/lit.%04d.vdb", "1-3", {"--stats", dir + "/seq.json", "--frame-log", log, "-q"}), dir,
+        {{"SLURM_CPUS_PER_TASK", "1"}});
     ASSERT_EQ(r.code, 0) << r.err;
     const std::string stats = lpmtest::readBytes(dir + "/seq.json");
     EXPECT_NE(stats.find("\"environment_reads\": 1,"), std::string::npos) << stats;
     const std::string lines = lpmtest::readBytes(log);
     EXPECT_EQ(countOf(lines, "\n"), 3);
-    for (const char* field : {"\"frame\": ", "\"status\": \"baked\"", "\"seconds\": ", "\"passes\": ",
+    for (const char* field : {"\"frame\": ", "\"status\": \"baked\"", "\"seconds\": ", "\"threads\": 1,", "\"passes\": ",
                               "\"residual\": ", "\"peak_rss_mib\": ", "\"output\": "})
         EXPECT_EQ(countOf(lines, field), 3) << field << "\n" << lines;
     EXPECT_EQ(countOf(lines, "\"environment_reused\": true"), 2) << lines;
@@ -151,6 +152,12 @@ TEST(Sequence, EnvironmentReadOncePerSequenceAndOneJsonLinePerFrame) {
     ASSERT_EQ(runLpmbake(seqArgs(in, dir + "/b.@.vdb", "2-3", {"--stats", dir + "/b.@.json", "-q"}), dir).code, 0);
     EXPECT_TRUE(fs::exists(dir + "/b.2.json"));
     EXPECT_TRUE(fs::exists(dir + "/b.3.json"));
+    // A frame log that cannot be written stops the sequence with an output error.
+    const auto bad = runLpmbake(
+        seqArgs(in, dir + "/c.@.vdb", "2", {"--frame-log", dir + "/no/such/dir/log.@.jsonl", "-q"}), dir);
+    EXPECT_EQ(bad.code, 3) << bad.err;
+    EXPECT_NE(bad.err.find("frame log: cannot write '" + dir + "/no/such/dir/log.2.jsonl'"), std::string::npos)
+        << bad.err;
 }
 
 TEST(Sequence, BadSequenceOptionsAreUsageErrors) {

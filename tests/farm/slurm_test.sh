@@ -17,12 +17,14 @@
 #   array     lpm_slurm_submit.sh --frames 1-3 --cpus 1 --wait: each output's
 #             `lpmbake info --digest` equals the local bake's (so also 1 thread == 2 threads);
 #             frame 1 is an empty density grid (an empty bake, exit 0)
-#   cancel    outputs removed, submitted again; the task of frame 3 is frozen (SIGSTOP) once its
-#             lpmbake has run a while, then scancelled (Slurm sends SIGCONT, SIGTERM): no file
-#             at its output path, no temporary file left; frames 1 and 2 complete
-#   resubmit  lpmbake --list-pending says "3"; lpm_slurm_submit.sh --only-pending --wait bakes
-#             frame 3 only (frames 1, 2 untouched: same inode and mtime); a second
-#             --only-pending submits nothing
+#   cancel    outputs removed, submitted again; the lpmbake of frame 2 is frozen (SIGSTOP)
+#             mid-solve and that of frame 3 mid-write (while its .lit.0003.lpmtmp-PID.vdb
+#             exists; best effort, a warning if the write is missed), then their tasks are
+#             scancelled (Slurm sends SIGCONT, SIGTERM): no file at their output paths, no
+#             temporary file left, Slurm records them CANCELLED; frame 1 completes
+#   resubmit  lpmbake --list-pending names exactly the cancelled frames;
+#             lpm_slurm_submit.sh --only-pending --wait bakes those only (the others keep
+#             inode and mtime); a second --only-pending submits nothing
 #   skip      lpm_slurm_submit.sh --chunk 2 --wait over 1-3 (tasks 0: 1-2, 1: 3): every frame
 #             reports "skipped", no file changes
 #   stop      slurm_local.sh stop (also run by the EXIT trap, whatever happens)
@@ -56,8 +58,22 @@ mkdir -p "$W/out" "$W/ref"
 OUT="$W/out/lit.####.vdb"
 out_of() { printf '%s/out/lit.%04d.vdb' "$W" "$1"; }
 BAKE=("$IN" --env "$ENV" -o "$OUT")    # the bake arguments every phase uses
+# Bounded: Slurm ends a task after 3 minutes, and no --wait lasts longer than 4.
+submit() { timeout 240 "$SUBMIT" --sbatch-arg --time=3 --lpmbake "$LPMBAKE" "$@"; }
+
+# Clusters of earlier runs that were killed outright (CTest's timeout, SIGKILL) still run:
+# stop those whose test process is gone.
+for d in /tmp/lpmslurm.*; do
+  [ -f "$d/owner" ] || continue
+  owner=$(cat "$d/owner" 2>/dev/null || true)
+  if [[ $owner =~ ^[0-9]+$ ]] && [ -d "/proc/$owner" ] && grep -qz slurm_test "/proc/$owner/cmdline" 2>/dev/null; then continue; fi
+  say "stopping a leftover test cluster in $d"
+  "$LOCAL" stop "$d" >/dev/null 2>&1 || true
+  rm -rf "$d"
+done
 
 CLUSTER=$(mktemp -d /tmp/lpmslurm.XXXXXX)
+echo $$ > "$CLUSTER/owner"
 failed=1
 cleanup() {
   "$LOCAL" stop "$CLUSTER" >/dev/null 2>&1 || say "warning: slurm_local.sh stop reported leftovers"
@@ -69,6 +85,8 @@ cleanup() {
   rm -rf "$CLUSTER"
 }
 trap cleanup EXIT
+trap 'exit 130' INT
+trap 'exit 143' TERM
 
 fail() {
   echo "$NAME: FAIL: $*" >&2
@@ -90,6 +108,17 @@ digest() {  # FILE -> 16 hex digits, or fail
   d=$("$LPMBAKE" info --digest "$1") || fail "lpmbake info --digest $1 exited $?"
   [[ $d =~ ^[0-9a-f]{16}$ ]] || fail "lpmbake info --digest $1 printed '$d', not 16 hex digits"
   echo "$d"
+}
+expand() {  # frame spec (N, A-B, A-BxS, lists) -> sorted, space-separated frames
+  local item a b st f out=()
+  IFS=, read -ra items <<< "$1"
+  for item in "${items[@]}"; do
+    if [[ $item =~ ^([0-9]+)-([0-9]+)(x([0-9]+))?$ ]]; then
+      a=${BASH_REMATCH[1]}; b=${BASH_REMATCH[2]}; st=${BASH_REMATCH[4]:-1}
+      for ((f = a; f <= b; f += st)); do out+=("$f"); done
+    elif [ -n "$item" ]; then out+=("$item"); fi
+  done
+  printf '%s\n' "${out[@]}" | sort -n | tr '\n' ' ' | sed 's/ $//'
 }
 statline() { stat -c '%i %y' "$1"; }   # inode and mtime (ns): "re-baked or not"
 
@@ -121,7 +150,7 @@ end local
 begin array
 L=$W/logs_array
 set +e
-j1=$("$SUBMIT" --frames 1-3 --cpus 1 --wait --log-dir "$L" --lpmbake "$LPMBAKE" -- "${BAKE[@]}")
+j1=$(submit --frames 1-3 --cpus 1 --wait --log-dir "$L" -- "${BAKE[@]}")
 rc=$?
 set -e
 [ $rc = 0 ] || fail "array job ${j1:-?} exited $rc"
@@ -138,98 +167,140 @@ end array
 
 # ---------------------------------------------------------------------------------------
 begin cancel
-victim=3
 rm -f "$W"/out/lit.*.vdb
 L=$W/logs_cancel
-j2=$("$SUBMIT" --frames 1-3 --cpus 1 --log-dir "$L" --lpmbake "$LPMBAKE" -- "${BAKE[@]}") || fail "submit for the cancel phase"
+j2=$(submit --frames 1-3 --cpus 1 --log-dir "$L" -- "${BAKE[@]}") || fail "submit for the cancel phase"
 
-# Find the lpmbake of task $victim: argv[0] (or argv[1] for an interpreted stand-in) is
-# $LPMBAKE and Slurm set SLURM_ARRAY_JOB_ID / SLURM_ARRAY_TASK_ID in its environment.
+# The lpmbake of task T of job j2: argv[0] (argv[1] for an interpreted stand-in) is $LPMBAKE
+# and Slurm put SLURM_ARRAY_JOB_ID / SLURM_ARRAY_TASK_ID in its environment.
 find_bake() {
   local p argv
   for p in /proc/[0-9]*; do
     mapfile -d '' -t argv 2>/dev/null < "$p/cmdline" || continue
     [ "${argv[0]:-}" = "$LPMBAKE" ] || [ "${argv[1]:-}" = "$LPMBAKE" ] || continue
     grep -qxz "SLURM_ARRAY_JOB_ID=$j2" "$p/environ" 2>/dev/null || continue
-    grep -qxz "SLURM_ARRAY_TASK_ID=$victim" "$p/environ" 2>/dev/null || continue
+    grep -qxz "SLURM_ARRAY_TASK_ID=$1" "$p/environ" 2>/dev/null || continue
     echo "${p#/proc/}"; return 0
   done
   return 1
 }
 cpu_ticks() { local s; s=$(cat "/proc/$1/stat" 2>/dev/null) || { echo -1; return; }; s=${s##*) }; set -- $s; echo $(( ${12} + ${13} )); }
+tmp_of() { printf '%s/out/.lit.%04d.lpmtmp-%s.vdb' "$W" "$1" "$2"; }   # lpmbake's .NAME.lpmtmp-PID.EXT
+now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
 
-pid=""
-for ((t = 0; t < 600; t++)); do   # 60 s for the task to start
-  pid=$(find_bake || true)
-  [ -n "$pid" ] && break
-  [ -f "$(out_of $victim)" ] && fail "frame $victim was baked before its lpmbake process was seen"
-  sleep 0.1
-done
-[ -n "$pid" ] || fail "the lpmbake of task ${j2}_$victim never appeared (squeue: $(squeue -h -j "$j2" 2>&1 | tr '\n' ';'))"
-# Let it get into the bake (0.3 s of CPU or 1 s), then freeze it so that the bake cannot
-# finish between our check and scancel.
+# Two victims, watched together (tasks 2 and 3 run side by side on 2 CPUs):
+#  frame 2 mid-solve: frozen (SIGSTOP) after 1 s of CPU (its bake needs ~4 s), before any file;
+#  frame 3 mid-write: frozen while its temporary file exists (the last ~0.3 s of the bake), so
+#    SIGTERM must remove a real temporary file. Best effort: if the 20 ms polling misses the
+#    write, frame 3 simply completes and only frame 2 counts as cancelled.
+# Freezing first means the bake cannot finish between our check and scancel; Slurm sends
+# SIGCONT, then SIGTERM (SIGKILL after KillWait = 10 s) to the cancelled task.
 hz=$(getconf CLK_TCK)
-for ((t = 0; t < 10; t++)); do
-  c=$(cpu_ticks "$pid")
-  [ "$c" -lt 0 ] && break
-  [ "$c" -ge $((hz * 3 / 10)) ] && break
-  sleep 0.1
+declare -A vpid=() vstate=([2]=wait [3]=wait) vseen=()
+cancelled=()
+for ((t = 0; t < 4500; t++)); do   # 90 s
+  for v in 2 3; do
+    case ${vstate[$v]} in
+      wait)
+        if p=$(find_bake $v); then vpid[$v]=$p; vseen[$v]=$(now_ms); vstate[$v]=running
+        elif [ -e "$(out_of $v)" ]; then fail "frame $v was baked before its lpmbake process was seen"
+        fi ;;
+      running)
+        p=${vpid[$v]}
+        if [ $v = 2 ]; then
+          c=$(cpu_ticks "$p")
+          [ "$c" -lt 0 ] && fail "lpmbake of frame 2 (pid $p) ended before 1 s of CPU: bake too short to cancel mid-solve"
+          [ "$c" -ge "$hz" ] || [ $(( $(now_ms) - ${vseen[$v]} )) -ge 3000 ] || continue
+          kill -STOP "$p" 2>/dev/null || fail "lpmbake of frame 2 (pid $p) ended before it could be frozen"
+          [ -e "$(out_of 2)" ] && fail "frame 2 finished before it was frozen ($(cpu_ticks "$p") CPU ticks)"
+          say "task ${j2}_2: lpmbake pid $p frozen mid-solve after $(cpu_ticks "$p") CPU ticks"
+        else
+          if [ -e "$(out_of 3)" ]; then
+            say "warning: frame 3's write (temporary file) was not caught; it completed: mid-write cancel not checked"
+            vstate[$v]=missed; continue
+          fi
+          if [ ! -e "$(tmp_of 3 "$p")" ]; then
+            if [ ! -d "/proc/$p" ] && [ ! -e "$(out_of 3)" ]; then
+              fail "lpmbake of frame 3 (pid $p) exited without writing $(out_of 3)"
+            fi
+            continue
+          fi
+          kill -STOP "$p" 2>/dev/null || continue   # ended just now: the next round sees the output
+          if [ ! -e "$(tmp_of 3 "$p")" ]; then    # renamed between the check and SIGSTOP
+            say "warning: frame 3 renamed its output just before SIGSTOP: mid-write cancel not checked"
+            kill -CONT "$p"; vstate[$v]=missed; continue
+          fi
+          say "task ${j2}_3: lpmbake pid $p frozen mid-write ($(basename "$(tmp_of 3 "$p")") exists)"
+        fi
+        scancel "${j2}_$v" || fail "scancel ${j2}_$v"
+        vstate[$v]=cancelled; cancelled+=("$v") ;;
+    esac
+  done
+  [ "${vstate[2]}" != wait ] && [ "${vstate[2]}" != running ] && [ "${vstate[3]}" != wait ] && [ "${vstate[3]}" != running ] && break
+  sleep 0.02
 done
-kill -STOP "$pid" 2>/dev/null || fail "lpmbake of frame $victim (pid $pid) ended before it could be frozen: bake too short"
-[ -f "$(out_of $victim)" ] && fail "frame $victim finished before it was frozen (pid $pid, $(cpu_ticks "$pid") ticks)"
-say "task ${j2}_$victim: lpmbake pid $pid frozen after $(cpu_ticks "$pid") CPU ticks; scancel"
-scancel "${j2}_$victim" || fail "scancel ${j2}_$victim"
-for ((t = 0; t < 400; t++)); do   # Slurm: SIGCONT, SIGTERM, SIGKILL after KillWait (10 s)
-  [ -z "$(squeue -h -j "${j2}_$victim" 2>/dev/null)" ] && [ ! -d "/proc/$pid" ] && break
-  sleep 0.1
-done
-[ -d "/proc/$pid" ] && [ "$(awk '{ print $3 }' "/proc/$pid/stat" 2>/dev/null)" != Z ] && fail "lpmbake pid $pid still alive 40 s after scancel"
-[ -e "$(out_of $victim)" ] && fail "cancelled frame $victim left a file at its output path $(out_of $victim)"
-tmp=$(find "$W/out" -name ".lit.*lpmtmp*" 2>/dev/null | tr '\n' ' ')
-[ -z "$tmp" ] || fail "cancelled bake left temporary files after SIGTERM: $tmp"
-# Slurm's record of the task (JobCompType=jobcomp/filetxt, written when the task ends).
-for ((t = 0; t < 50; t++)); do
-  state=$(grep "ArrayJobId=$j2 ArrayTaskId=$victim " "$CLUSTER/log/jobcomp.log" 2>/dev/null | sed -n 's/.*JobState=\([A-Z]*\).*/\1/p' | tail -n 1)
-  [ -n "$state" ] && break
-  sleep 0.1
-done
-[ "$state" = CANCELLED ] || fail "task ${j2}_$victim ended as '${state:-?}', not CANCELLED"
-# The other tasks finish normally.
+[ "${vstate[2]}" = cancelled ] || fail "frame 2 was never caught mid-solve (state ${vstate[2]}; squeue: $(squeue -h -j "$j2" 2>&1 | tr '\n' ';'))"
+[ "${vstate[3]}" = cancelled ] || [ "${vstate[3]}" = missed ] || fail "frame 3: lpmbake never seen (state ${vstate[3]})"
+
+# Wait for the whole job; then the cancelled frames must have left nothing behind.
 for ((t = 0; t < 1200; t++)); do [ -z "$(squeue -h -j "$j2" 2>/dev/null)" ] && break; sleep 0.1; done
 [ -z "$(squeue -h -j "$j2" 2>/dev/null)" ] || fail "job $j2 still queued 120 s after the cancel"
+for v in "${cancelled[@]}"; do
+  p=${vpid[$v]}
+  for ((t = 0; t < 100; t++)); do [ -d "/proc/$p" ] || break; [ "$(awk '{ print $3 }' "/proc/$p/stat" 2>/dev/null)" = Z ] && break; sleep 0.1; done
+  [ -d "/proc/$p" ] && [ "$(awk '{ print $3 }' "/proc/$p/stat" 2>/dev/null)" != Z ] && fail "frame $v: lpmbake pid $p still alive after scancel"
+  [ -e "$(out_of $v)" ] && fail "cancelled frame $v left a file at its output path $(out_of $v)"
+  [ -e "$(tmp_of $v "$p")" ] && fail "cancelled frame $v left its temporary file after SIGTERM: $(tmp_of $v "$p")"
+  # Slurm's record of the task (JobCompType=jobcomp/filetxt, written when the task ends).
+  state=""
+  for ((t = 0; t < 50; t++)); do
+    state=$(grep "ArrayJobId=$j2 ArrayTaskId=$v " "$CLUSTER/log/jobcomp.log" 2>/dev/null | sed -n 's/.*JobState=\([A-Z]*\).*/\1/p' | tail -n 1)
+    [ -n "$state" ] && break
+    sleep 0.1
+  done
+  [ "$state" = CANCELLED ] || fail "task ${j2}_$v ended as '${state:-?}', not CANCELLED"
+done
+left=$(find "$W/out" -name '.*lpmtmp*' | tr '\n' ' ')
+[ -z "$left" ] || fail "temporary files left in the output directory: $left"
 declare -A before=()
-for f in 1 2; do
+for f in 1 2 3; do
+  [[ " ${cancelled[*]} " == *" $f "* ]] && continue
   [ -f "$(out_of $f)" ] || fail "frame $f: no output after the cancel phase"
   [ "$(digest "$(out_of $f)")" = "${ref[$f]}" ] || fail "frame $f: digest differs from the local bake"
   before[$f]=$(statline "$(out_of $f)")
 done
-say "job $j2: task $victim cancelled mid-bake (no output, no temp file), frames 1 and 2 baked"
+say "job $j2: cancelled frames ${cancelled[*]} left no output and no temporary file; the others baked"
 end cancel
 
 # ---------------------------------------------------------------------------------------
 begin resubmit
 pending=$("$LPMBAKE" "${BAKE[@]}" --frames 1-3 --list-pending) || fail "lpmbake --list-pending exited $?"
-[ "$pending" = "$victim" ] || fail "lpmbake --list-pending printed '$pending', expected '$victim'"
+want=$(IFS=,; echo "${cancelled[*]}")
+[ "$(expand "$pending")" = "$(expand "$want")" ] || fail "lpmbake --list-pending printed '$pending', expected the cancelled frames $want"
 L=$W/logs_resubmit
 set +e
-j3=$("$SUBMIT" --frames 1-3 --cpus 1 --only-pending --wait --log-dir "$L" --lpmbake "$LPMBAKE" -- "${BAKE[@]}")
+j3=$(submit --frames 1-3 --cpus 1 --only-pending --wait --log-dir "$L" -- "${BAKE[@]}")
 rc=$?
 set -e
 [ $rc = 0 ] || fail "--only-pending job ${j3:-?} exited $rc"
 [[ $j3 =~ ^[0-9]+$ ]] || fail "--only-pending printed '$j3', not a job id"
-tasks=$(grep -v '^#' "$L/lpmbake_$j3.frames" | tr '\n' ';')
-[ "$tasks" = "$victim $victim;" ] || fail "--only-pending submitted tasks '$tasks', expected only frame $victim"
-[ "$(frame_status "$L" "$j3" $victim)" = baked ] || fail "frame $victim: frame log says '$(frame_status "$L" "$j3" $victim)', not baked"
-[ "$(digest "$(out_of $victim)")" = "${ref[$victim]}" ] || fail "frame $victim: re-baked digest differs from the local bake"
-for f in 1 2; do
-  [ "$(statline "$(out_of $f)")" = "${before[$f]}" ] || fail "frame $f was rewritten by the --only-pending job"
+tasks=$(grep -v '^#' "$L/lpmbake_$j3.frames" | awk '{ print $2 }' | tr '\n' ',')
+[ "$(expand "${tasks%,}")" = "$(expand "$want")" ] || fail "--only-pending submitted tasks for frames '$tasks', expected $want"
+for f in 1 2 3; do
+  if [[ " ${cancelled[*]} " == *" $f "* ]]; then
+    [ "$(frame_status "$L" "$j3" $f)" = baked ] || fail "frame $f: frame log says '$(frame_status "$L" "$j3" $f)', not baked"
+    [ "$(digest "$(out_of $f)")" = "${ref[$f]}" ] || fail "frame $f: re-baked digest differs from the local bake"
+  else
+    [ -z "$(frame_status "$L" "$j3" $f)" ] || fail "frame $f was not pending but the --only-pending job ran it"
+    [ "$(statline "$(out_of $f)")" = "${before[$f]}" ] || fail "frame $f was rewritten by the --only-pending job"
+  fi
 done
 set +e
-j4=$("$SUBMIT" --frames 1-3 --cpus 1 --only-pending --log-dir "$L" --lpmbake "$LPMBAKE" -- "${BAKE[@]}" 2>"$W/nothing_pending.txt")
+j4=$(submit --frames 1-3 --cpus 1 --only-pending --log-dir "$L" -- "${BAKE[@]}" 2>"$W/nothing_pending.txt")
 rc=$?
 set -e
 [ $rc = 0 ] && [ -z "$j4" ] || fail "--only-pending with nothing pending: exit $rc, printed '$j4' ($(cat "$W/nothing_pending.txt"))"
-say "job $j3: only frame $victim re-baked; nothing pending afterwards"
+say "job $j3: only frames $want re-baked; nothing pending afterwards"
 end resubmit
 
 # ---------------------------------------------------------------------------------------
@@ -237,7 +308,7 @@ begin skip
 for f in 1 2 3; do before[$f]=$(statline "$(out_of $f)"); done
 L=$W/logs_skip
 set +e
-j5=$("$SUBMIT" --frames 1-3 --chunk 2 --cpus 1 --wait --log-dir "$L" --lpmbake "$LPMBAKE" -- "${BAKE[@]}")
+j5=$(submit --frames 1-3 --chunk 2 --cpus 1 --wait --log-dir "$L" -- "${BAKE[@]}")
 rc=$?
 set -e
 [ $rc = 0 ] || fail "chunked job ${j5:-?} exited $rc"
