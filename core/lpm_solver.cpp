@@ -68,6 +68,54 @@ Medium subdivided(const Medium& m, int k) {
 // m is the delta-M-scaled medium). initialSource: null for the external-light problem; for
 // the coarse continuation of multi-resolution, the restricted unshot [voxel][bin][rgb] that
 // replaces pass 0 (no external light).
+/// Per-voxel values of the k-fold subdivided medium `fm`, averaged back onto `m`'s voxels.
+std::vector<float> averageBack(const Medium& m, const Medium& fm, int k, const std::vector<float>& fine) {
+    std::vector<float> out(m.voxelCount(), 0.0f);
+    parallelForChunks(size_t(m.nz), 1, [&](size_t zb, size_t ze) {
+        for (int z = int(zb); z < int(ze); ++z)
+            for (int y = 0; y < m.ny; ++y)
+                for (int x = 0; x < m.nx; ++x) {
+                    const size_t v = m.index(x, y, z);
+                    if (v == Medium::npos) continue;
+                    double acc = 0;
+                    for (int dz = 0; dz < k; ++dz)
+                        for (int dy = 0; dy < k; ++dy)
+                            for (int dx = 0; dx < k; ++dx) acc += fine[fm.index(x * k + dx, y * k + dy, z * k + dz)];
+                    out[v] = float(acc / (k * k * k));
+                }
+    });
+    return out;
+}
+
+/// The exact sun term's transmittance (core/sun_term.h): each sun's job of pass 0 swept
+/// again with unit irradiance; its deposit per voxel volume is the voxel mean of the
+/// beam's transmittance. `jobs` ends with the suns' jobs, in `suns` order (black suns
+/// have none); the first `explicitSuns` suns came from the lights, the rest are hot pixels.
+void sweepSunTerms(const Medium& m, const std::vector<Sun>& suns, size_t explicitSuns, const std::vector<Job>& jobs,
+                   int raysPerVoxel, int moments, double voxelVolume, LpmResult& res) {
+    size_t lit = 0;
+    for (const Sun& sun : suns) lit += sun.irradiance.isBlack() ? 0 : 1;
+    size_t job = jobs.size() - lit;
+    for (size_t i = 0; i < suns.size(); ++i) {
+        if (suns[i].irradiance.isBlack()) continue;
+        Job unit = jobs[job++];
+        unit.boundary = RGB(1.0f);
+        std::vector<float> phi(m.voxelCount() * 3 * moments, 0.0f);
+        Tally ignored;
+        if (moments == 4) sweepReference<true>(m, unit, raysPerVoxel, phi.data(), ignored);
+        else sweepStep(m, unit, raysPerVoxel, phi.data(), ignored);
+        SunTerm t;
+        t.toSun = normalize(suns[i].toSun);
+        t.irradiance = suns[i].irradiance;
+        t.angularDiameterDeg = suns[i].angularDiameterDeg;
+        t.fromEnvironment = i >= explicitSuns;
+        t.transmittance.resize(m.voxelCount());
+        for (size_t v = 0; v < t.transmittance.size(); ++v)
+            t.transmittance[v] = float(std::clamp(phi[v * 3 * moments] / voxelVolume, 0.0, 1.0));
+        res.sunTerms.push_back(std::move(t));
+    }
+}
+
 static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSettings& s, double gOut,
                            const std::vector<float>* initialSource = nullptr) {
     const auto t0 = Clock::now();
@@ -102,6 +150,7 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
                         for (size_t i = 0; i < nc * 3; ++i) res.sh[v * nc * 3 + i] = float(acc[i] / (k * k * k));
                     }
         });
+        for (SunTerm& t : res.sunTerms) t.transmittance = averageBack(m, fm, k, t.transmittance);
         res.decisions.push_back("solved on voxels split " + std::to_string(k) + "x" + std::to_string(k) + "x" +
                                 std::to_string(k) + " and averaged back");
         res.seconds = secondsSince(t0);
@@ -445,6 +494,7 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         Tally t;
         runJobsAny(jobs, t, true, next);
         res.injected = Tally::mean(t.injected);
+        if (s.sunTerms) sweepSunTerms(m, suns, lights.suns.size(), jobs, r, M, V, res);
         recordPass(0, t, tp);
     }
 

@@ -11,6 +11,7 @@
 
 #include "core/medium.h"
 #include "core/sh.h"
+#include "core/sun_term.h"
 
 namespace lpm {
 
@@ -47,6 +48,9 @@ struct LpmSettings {
     int subdivide = 1;          ///< solve on voxels split k x k x k (same medium), average back: for
                                 ///< optically thick voxels, where a voxel-constant source leaks light
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass
+    /// Also return each sun's beam transmittance (LpmResult::sunTerms) so its single
+    /// scattering can be stored exactly beside the SH (core/sun_term.h); res.sh is unchanged.
+    bool sunTerms = false;
     /// Optional: precomputations shared between solves (the frames of a sequence); the
     /// results are the same without it.
     std::shared_ptr<LpmCache> cache;
@@ -78,6 +82,9 @@ struct LpmResult {
     std::uint64_t segments = 0;  ///< ray-segment updates performed
     double seconds = 0;
     std::vector<std::string> decisions;  ///< what the solver decided and why
+    /// With LpmSettings::sunTerms: every sun swept (the lights' suns, then the environment's
+    /// hot pixels), with its transmittance; res.sh includes their single scattering.
+    std::vector<SunTerm> sunTerms;
     /// Coarse continuation only (internal to multi-resolution): every source the passes
     /// propagated, plus the unshot remainder, [voxel][bin][rgb].
     std::vector<float> sourceSum;
