@@ -224,6 +224,9 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
     // 3. Solve.
     LpmResult res;
     LpmSettings settings = o.solver;
+    // The exact sun term pays where SH cannot hold a sun's single scattering: any g != 0
+    // (at g = 0 the phase is isotropic and SH order 0 holds it exactly).
+    settings.sunTerms = o.sunTerm == 1 || (o.sunTerm < 0 && o.g != 0.0);
     if (context) {
         if (!context->solverCache) context->solverCache = std::make_shared<LpmCache>();
         settings.cache = context->solverCache;
@@ -262,6 +265,24 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
         log.warn("the solver stopped after " + std::to_string(sum.passes) + " passes with residual " +
                  fmt(res.residual) + " above --tolerance " + fmt(o.solver.tolerance) + " (raise --max-orders)");
 
+    // The suns' single scattering leaves the SH for the exact terms; `scatter` keeps it.
+    std::vector<float> scatter;
+    if (!res.sunTerms.empty()) {
+        scatter.resize(res.sh.size() / res.coeffs);
+        for (size_t v = 0; v < scatter.size() / 3; ++v)
+            for (int c = 0; c < 3; ++c) scatter[v * 3 + c] = res.sh[v * res.coeffs * 3 + c] * float(kY00);
+        removeSunTermsFromSh(res.sh, res.shOrder, res.sunTerms, o.g);
+        res.decisions.push_back("exact sun term: " + std::to_string(res.sunTerms.size()) +
+                                " sun(s) kept out of the SH and stored as transmittance grids (g = " + fmt(o.g) +
+                                ": no low SH order holds the phase lobe of a sun's single scattering)");
+        log.note(res.decisions.back());
+    } else if (!vol.empty && !lights.suns.empty() && !settings.sunTerms) {
+        res.decisions.push_back(o.g == 0.0 ? "no exact sun term: g = 0, SH order 0 holds isotropic single scattering "
+                                             "exactly"
+                                           : "no exact sun term (--sun-term off): suns' single scattering through SH");
+    }
+    sum.sunTerms = int(res.sunTerms.size());
+
     // 4. Metadata: everything a consumer needs to use the bake without this tool.
     const openvdb::MetaMap meta = bakeMetadata(o, sum, res, env, vol.sanitized + env.sanitized);
 
@@ -279,6 +300,8 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
     db.coeffs = res.coeffs;
     db.sh = vol.empty ? nullptr : res.sh.data();
     db.emission = (!vol.empty && m.hasEmission()) ? m.emission.data() : nullptr;
+    db.scatter = scatter.empty() ? nullptr : scatter.data();
+    for (const SunTerm& t : res.sunTerms) db.sunTransmittance.push_back(t.transmittance.data());
     db.layout = vol.empty ? nullptr : &m;
     BakeWriteOptions wo;
     wo.path = o.output;

@@ -65,6 +65,7 @@ std::string canonicalSettings(const BakeOptions& o) {
     num("half", o.half);
     num("no_density", o.noDensity);
     num("solve_scale", o.solveScale);
+    num("sun_term", o.sunTerm);
     return c.str();
 }
 
@@ -184,6 +185,24 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
     str("timings", "read " + fmt(sum.secondsRead) + " s, environment " + fmt(sum.secondsEnv) + " s, solve " +
                        fmt(sum.secondsSolve) + " s");
     if (!o.commandLine.empty()) str("command_line", o.commandLine);
+    i32("sun_term_count", int(res.sunTerms.size()));
+    if (!res.sunTerms.empty()) {
+        dbl("sun_term_g", o.g);
+        str("sun_term_convention",
+            "exact single scattering of each sun K, not in the SH grids: S(x, w) += E_K T_K(x) p_HG(g; dot(-toward_K, "
+            "w)), w = direction the scattered light travels (S(x, -view) for a camera ray along view), T_K = grid "
+            "sun_transmittance_K (voxel mean of the beam's transmittance), E_K = lpm:sun_term_K_irradiance, g = "
+            "lpm:sun_term_g, p_HG = (1 - g^2) / (4 pi (1 + g^2 - 2 g cos)^1.5); the scatter grid includes it");
+    }
+    for (size_t k = 0; k < res.sunTerms.size(); ++k) {
+        const SunTerm& t = res.sunTerms[k];
+        const std::string p = "sun_term_" + std::to_string(k) + "_";
+        meta.insertMeta("lpm:" + p + "toward", openvdb::Vec3DMetadata(openvdb::Vec3d(t.toSun.x, t.toSun.y, t.toSun.z)));
+        rgb(p + "irradiance", t.irradiance);
+        dbl(p + "angle_deg", t.angularDiameterDeg);
+        str(p + "source", t.fromEnvironment ? "environment hot pixel" : "--sun");
+        str(p + "grid", sunTransmittanceGridName(int(k)));
+    }
     str("settings", canonicalSettings(o));
     str("settings_digest", settingsDigest(o));
     return meta;

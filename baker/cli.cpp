@@ -193,7 +193,7 @@ int runCli(int argc, char** argv) {
     std::vector<std::string> suns, sunIrr;
     std::vector<double> sunAngle;
     bool noKrylov = false;
-    std::string sourceShape = "auto", deltaM = "auto", multires = "auto";
+    std::string sourceShape = "auto", deltaM = "auto", multires = "auto", sunTerm = "auto";
     std::string solveScale = "1";
 
     app.add_option("input", b.input, "input OpenVDB file (positional)");
@@ -285,6 +285,13 @@ int runCli(int argc, char** argv) {
         ->default_val(b.solver.envHotShare)
         ->check(CLI::Range(0.0, 1.0))
         ->group(gS);
+    app.add_option("--sun-term", sunTerm,
+                   "exact sun term: auto (when g != 0), on, off: each sun's single scattering is kept out of the SH "
+                   "and stored as a transmittance grid a renderer evaluates with the exact phase function "
+                   "(docs/sun_term.md)")
+        ->default_val("auto")
+        ->check(CLI::IsMember({"auto", "on", "off"}))
+        ->group(gS);
     app.add_flag("--no-krylov", noKrylov, "never switch to GMRES acceleration (plain source iteration)")->group(gS);
     // Read as text and converted here: CLI11 would refuse "nan" without naming the allowed
     // range; checkOptions names the value and the range.
@@ -365,6 +372,7 @@ int runCli(int argc, char** argv) {
     b.solver.linearSource = sourceShape == "linear" ? 1 : (sourceShape == "constant" ? 0 : -1);
     b.solver.deltaM = deltaM == "on" ? 1 : (deltaM == "off" ? 0 : -1);
     b.solver.multires = multires == "on" ? 1 : (multires == "off" ? 0 : -1);
+    b.sunTerm = sunTerm == "on" ? 1 : (sunTerm == "off" ? 0 : -1);
     Log log;
     log.verbosity = quiet ? 0 : 1 + verbose;
     try {

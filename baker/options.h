@@ -65,6 +65,7 @@ struct BakeOptions {
     bool noDensity = false;
     std::uint64_t maxVoxels = 1ull << 30;
     double solveScale = 1.0;  ///< solve voxels per input voxel along each axis, in [0.05, 8]
+    int sunTerm = -1;  ///< exact sun term: -1 auto (when g != 0), 0 off, 1 on (core/sun_term.h)
     std::string statsPath;
     std::string commandLine;  ///< recorded in the metadata
 };
@@ -81,7 +82,8 @@ struct BakeSummary {
     Vec3 solveVoxelSize{0, 0, 0};  ///< its voxel size, world units (input voxel size / solveScale)
     double secondsRead = 0, secondsEnv = 0, secondsSolve = 0, secondsWrite = 0, secondsTotal = 0;
     bool envReused = false;
-    int threads = 0;  ///< worker threads the bake ran with  ///< the environment came from the sequence's context
+    int threads = 0;  ///< worker threads the bake ran with
+    int sunTerms = 0;  ///< exact sun terms written (sun_transmittance_K grids)  ///< the environment came from the sequence's context
     long peakRssKiB = 0;
 };
 

@@ -2,7 +2,8 @@
 // from the baked S only: along a camera ray with direction v it accumulates
 //   L += T * albedo * S(x, -v) * (1 - exp(-sigma_t dt))        (in-scattering)
 //      + T * (1 - albedo) * L_e * (1 - exp(-sigma_t dt))        (emission, if baked)
-// with density and S trilinearly interpolated (S from the SH grids, clamped at zero), and
+// with density and S trilinearly interpolated (S from the SH grids, clamped at zero, plus
+// the exact sun terms E T p_HG of format 2, core/sun_term.h), and
 // adds T * environment(v) behind the volume. Settings come from the bake's metadata.
 // The march samples only where the interpolated density is non-zero, i.e. within one voxel
 // of an active density voxel; the lighting grids hold solved S on that whole footprint
@@ -19,6 +20,7 @@
 #include "core/mc_reference.h"
 #include "core/parallel.h"
 #include "core/sh.h"
+#include "core/sun_term.h"
 #include "vdb_io/atomic_file.h"
 #include "vdb_io/bake_file.h"
 #include "vdb_io/color.h"
@@ -95,6 +97,16 @@ void runRender(const RenderOptions& o, const Log& log) {
     const std::string working = metaString(meta, "lpm:working_colorspace", "ACEScg");
     const int nc = shCount(bake.shOrder);
 
+    // Exact sun terms (format 2, core/sun_term.h): S(x, w) += E_k T_k(x) p_HG(g, dot(-toward_k, w)).
+    std::vector<SunTerm> suns(bake.sunTransmittance.size());
+    const double sunG = metaDouble(meta, "lpm:sun_term_g", 0.0);
+    for (size_t k = 0; k < suns.size(); ++k) {
+        const std::string p = "lpm:sun_term_" + std::to_string(k) + "_";
+        const auto toward = meta.getMetadata<openvdb::Vec3DMetadata>(p + "toward");
+        if (toward) suns[k].toSun = normalize(Vec3{toward->value().x(), toward->value().y(), toward->value().z()});
+        suns[k].irradiance = metaRgb(meta, p + "irradiance", RGB(0.f));
+    }
+
     std::unique_ptr<EnvMap> env;
     if (!o.env.empty()) {
         EnvReadOptions eo;
@@ -143,6 +155,9 @@ void runRender(const RenderOptions& o, const Log& log) {
         auto dacc = bake.density->getConstAccessor();
         std::vector<openvdb::Vec3SGrid::ConstAccessor> shAcc;
         for (int k = 0; k < nc; ++k) shAcc.push_back(bake.sh[k]->getConstAccessor());
+        std::vector<openvdb::FloatGrid::ConstAccessor> sunAcc;
+        for (const auto& g : bake.sunTransmittance) sunAcc.push_back(g->getConstAccessor());
+        std::vector<double> sunPhase(suns.size());
         std::unique_ptr<openvdb::Vec3SGrid::ConstAccessor> eacc;
         if (bake.emission) eacc.reset(new openvdb::Vec3SGrid::ConstAccessor(bake.emission->getConstAccessor()));
         for (size_t py = y0; py < y1; ++py)
@@ -156,6 +171,7 @@ void runRender(const RenderOptions& o, const Log& log) {
                 if (hasVolume && clipRay(eo, di, box, t0, t1)) {
                     double Y[16];
                     shEval(-v, Y);  // S(x, -v): light travelling toward the eye
+                    for (size_t k = 0; k < suns.size(); ++k) sunPhase[k] = sunTermPhase(suns[k], sunG, -v);
                     const double dt = o.stepVoxels / di.length();  // world length of one step
                     for (double t = t0 + 0.5 * dt; t < t1 && T > 1e-4; t += dt) {
                         const openvdb::Vec3d p = eo + di * t;
@@ -170,10 +186,16 @@ void runRender(const RenderOptions& o, const Log& log) {
                             BoxSampler::sample(shAcc[k], p, c);
                             for (int ch = 0; ch < 3; ++ch) S[ch] += c[ch] * Y[k];
                         }
+                        double Ssun[3] = {0, 0, 0};  // exact, non-negative: added after the SH clamp
+                        for (size_t k = 0; k < suns.size(); ++k) {
+                            float T = 0;
+                            BoxSampler::sample(sunAcc[k], p, T);
+                            for (int ch = 0; ch < 3; ++ch) Ssun[ch] += suns[k].irradiance[ch] * T * sunPhase[k];
+                        }
                         openvdb::Vec3s le(0.f);
                         if (eacc) BoxSampler::sample(*eacc, p, le);
                         for (int ch = 0; ch < 3; ++ch)
-                            L[ch] += T * a * (albedo[ch] * std::max(0.0, S[ch]) + (1 - albedo[ch]) * le[ch]);
+                            L[ch] += T * a * (albedo[ch] * (std::max(0.0, S[ch]) + Ssun[ch]) + (1 - albedo[ch]) * le[ch]);
                         T *= std::exp(-tau);
                     }
                 }

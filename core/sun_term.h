@@ -32,4 +32,8 @@ double sunTermPhase(const SunTerm& t, double g, const Vec3& w);
 /// (k < (order + 1)^2): E T g^l Y_k(-toSun) c_l(disc), as the solver deposits it.
 void addSunTermSh(const SunTerm& t, double g, int order, float T, double sign, float* coeffs);
 
+/// Takes every term's projection out of `sh` ([voxel][k][rgb], order `order`): what is
+/// left is S without the suns' single scattering, which the terms then carry exactly.
+void removeSunTermsFromSh(std::vector<float>& sh, int order, const std::vector<SunTerm>& terms, double g);
+
 }  // namespace lpm

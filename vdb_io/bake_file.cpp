@@ -53,15 +53,18 @@ Stencil stencilAt(const DenseBake& b, const openvdb::Coord& c) {
 /// the dense voxel holding the input voxel; otherwise interpolated between dense voxels).
 /// lightingTopology() keeps only voxels with solved values, so no stencil index is npos
 /// there; the density's own voxels always have one from readVolume's block.
-template <typename F>
-openvdb::Vec3SGrid::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake& b, F value) {
-    openvdb::Vec3SGrid::Ptr g = topo.deepCopy();
-    openvdb::tree::LeafManager<openvdb::Vec3STree> leaves(g->tree());
+template <typename GridT = openvdb::Vec3SGrid, typename F>
+typename GridT::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake& b, F value) {
+    using ValueT = typename GridT::ValueType;
+    typename GridT::Ptr g = GridT::create(ValueT(0));
+    g->setTransform(topo.transform().copy());
+    g->tree().topologyUnion(topo.tree());
+    openvdb::tree::LeafManager<typename GridT::TreeType> leaves(g->tree());
     if (b.scale != 1.0 || b.affine) {
-        leaves.foreach([&](openvdb::Vec3STree::LeafNodeType& leaf, size_t) {
+        leaves.foreach([&](typename GridT::TreeType::LeafNodeType& leaf, size_t) {
             for (auto it = leaf.beginValueOn(); it; ++it) {
                 const Stencil s = stencilAt(b, it.getCoord());
-                openvdb::Vec3s v(0.f);
+                ValueT v(0);
                 for (int k = 0; k < 8; ++k)
                     if (s.weight[k] != 0.f && s.index[k] != Medium::npos) v += value(s.index[k]) * s.weight[k];
                 it.setValue(v);
@@ -69,7 +72,7 @@ openvdb::Vec3SGrid::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake
         });
         return g;
     }
-    leaves.foreach([&](openvdb::Vec3STree::LeafNodeType& leaf, size_t) {
+    leaves.foreach([&](typename GridT::TreeType::LeafNodeType& leaf, size_t) {
         for (auto it = leaf.beginValueOn(); it; ++it) {
             const openvdb::Coord d = it.getCoord() - b.blockMin;
             if (d.x() < 0 || d.y() < 0 || d.z() < 0 || d.x() >= b.nx || d.y() >= b.ny || d.z() >= b.nz) continue;
@@ -132,7 +135,12 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
     }
     {
         openvdb::Vec3SGrid::Ptr s = topo->deepCopy();
-        if (b.sh)
+        if (b.scatter)
+            s = fillGrid(*topo, b, [&](size_t i) {
+                const float* p = b.scatter + i * 3;
+                return openvdb::Vec3s(p[0], p[1], p[2]);
+            });
+        else if (b.sh)
             s = fillGrid(*topo, b, [&](size_t i) {
                 const float* p = b.sh + i * b.coeffs * 3;
                 const float y = float(kY00);
@@ -143,6 +151,16 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
         s->setVectorType(openvdb::VEC_INVARIANT);
         s->insertMeta("lpm:description", openvdb::StringMetadata("direction-averaged S = sh_0 * 0.282095"));
         grids.push_back(s);
+    }
+    for (size_t k = 0; k < b.sunTransmittance.size(); ++k) {
+        const float* tr = b.sunTransmittance[k];
+        openvdb::FloatGrid::Ptr t = fillGrid<openvdb::FloatGrid>(*topo, b, [&](size_t i) { return tr[i]; });
+        t->setName(sunTransmittanceGridName(int(k)));
+        t->setGridClass(openvdb::GRID_FOG_VOLUME);
+        t->insertMeta("lpm:description",
+                      openvdb::StringMetadata("transmittance toward sun " + std::to_string(k) +
+                                              " (lpm:sun_term_" + std::to_string(k) + "_*): S += E T p_HG"));
+        grids.push_back(t);
     }
     if (b.emission) {
         openvdb::Vec3SGrid::Ptr e = fillGrid(*topo, b, [&](size_t i) {
@@ -211,6 +229,13 @@ BakeFile readBakeFile(const std::string& path) {
         if (!g) break;
         f.sh.push_back(g);
     }
+    for (int k = 0;; ++k) {
+        openvdb::FloatGrid::Ptr g;
+        for (auto& base : f.grids)
+            if (base->getName() == sunTransmittanceGridName(k)) g = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
+        if (!g) break;
+        f.sunTransmittance.push_back(g);
+    }
     for (auto& base : f.grids) {
         if (base->getName() == "scatter") f.scatter = openvdb::gridPtrCast<openvdb::Vec3SGrid>(base);
         if (base->getName() == "emission") f.emission = openvdb::gridPtrCast<openvdb::Vec3SGrid>(base);
@@ -239,6 +264,18 @@ std::vector<std::string> validateBake(const BakeFile& f) {
     for (const auto& g : f.sh)
         if (g->transform() != f.sh.front()->transform())
             why.push_back("grid '" + g->getName() + "' has a different transform from sh_0");
+    const int suns = metaInt(*f.meta, "lpm:sun_term_count", 0);
+    if (suns != int(f.sunTransmittance.size()))
+        why.push_back("lpm:sun_term_count is " + std::to_string(suns) + " but the file has " +
+                      std::to_string(f.sunTransmittance.size()) + " float grids sun_transmittance_0..");
+    for (int k = 0; k < suns && k < int(f.sunTransmittance.size()); ++k) {
+        const std::string p = "lpm:sun_term_" + std::to_string(k) + "_";
+        if (!f.meta->getMetadata<openvdb::Vec3DMetadata>(p + "toward") ||
+            !f.meta->getMetadata<openvdb::Vec3DMetadata>(p + "irradiance"))
+            why.push_back("exact sun term " + std::to_string(k) + " lacks " + p + "toward or " + p + "irradiance");
+    }
+    if (suns > 0 && !f.meta->getMetadata<openvdb::DoubleMetadata>("lpm:sun_term_g"))
+        why.push_back("exact sun terms without lpm:sun_term_g");
     return why;
 }
 

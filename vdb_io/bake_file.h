@@ -5,6 +5,9 @@
 //   scatter           Vec3f, direction-averaged S = sh_0 * Y00, class "fog volume"
 //   density           the input density (unless --no-density), class "fog volume"
 //   emission          Vec3f emitted radiance L_e used by the bake (only with --emission-grid)
+//   sun_transmittance_K  float, exact sun term K (core/sun_term.h): the SH hold S without
+//                     that sun's single scattering; a renderer adds E T p_HG (metadata
+//                     lpm:sun_term_K_*)
 // All grids share the input density's transform. `density` keeps its active topology; the
 // lighting grids (sh_*, scatter, emission) hold the density's active voxels dilated by the
 // trilinear footprint (vdb_io/lighting_topology.h). File metadata keys start with "lpm:".
@@ -20,7 +23,9 @@
 
 namespace lpm {
 
-constexpr int kBakeFormatVersion = 1;
+/// 2: exact sun terms (sun_transmittance_K grids; the SH then leave out those suns'
+/// single scattering). 1: SH only.
+constexpr int kBakeFormatVersion = 2;
 
 /// The dense solver result and where it sits in the input's index space.
 /// scale == 1: dense voxel d holds the value of input voxel blockMin + d (direct lookup).
@@ -38,6 +43,11 @@ struct DenseBake {
     int coeffs = 1;            ///< SH coefficients per voxel
     const float* sh = nullptr; ///< [voxel][coeff][rgb], x fastest; null for an empty bake
     const RGB* emission = nullptr;  ///< per dense voxel, or null
+    /// Direction-averaged S per dense voxel [voxel][rgb] (the sun terms' share included);
+    /// null: sh_0 * Y00.
+    const float* scatter = nullptr;
+    /// Per exact sun term (core/sun_term.h): its transmittance per dense voxel.
+    std::vector<const float*> sunTransmittance;
     /// Storage layout of `sh`/`emission` (sparse 8^3 tiles); null = dense, x fastest.
     const Medium* layout = nullptr;
     size_t index(int x, int y, int z) const {
@@ -75,6 +85,9 @@ struct BakeWriteReport {
 BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& bake, const openvdb::MetaMap& meta,
                           const BakeWriteOptions& options);
 
+/// Name of the grid of exact sun term k: sun_transmittance_k.
+inline std::string sunTransmittanceGridName(int k) { return "sun_transmittance_" + std::to_string(k); }
+
 /// A bake read back.
 struct BakeFile {
     std::string path;
@@ -83,6 +96,7 @@ struct BakeFile {
     std::vector<openvdb::Vec3SGrid::Ptr> sh;  ///< sh_0 .. sh_{N-1} (as many as found in a row)
     openvdb::Vec3SGrid::Ptr scatter, emission;
     openvdb::FloatGrid::Ptr density;
+    std::vector<openvdb::FloatGrid::Ptr> sunTransmittance;  ///< sun_transmittance_0.. (as many as found in a row)
     int shOrder = -1;  ///< from metadata, -1 if absent
 };
 

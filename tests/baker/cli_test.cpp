@@ -436,3 +436,65 @@ TEST(Cli, MultiresIsReportedAndRecorded) {
                                   dir),
                        1, "usage", {"--multires", "maybe"});
 }
+
+// The exact sun term (docs/sun_term.md): on for g != 0, off for g = 0 (SH order 0 holds
+// isotropic single scattering exactly) or --sun-term off; recorded, validated, and the
+// SH then hold S without the sun's single scattering while `scatter` keeps it.
+TEST(Cli, SunTermIsChosenRecordedAndValidated) {
+    const std::string dir = lpmtest::scratchDir();
+    auto bake = [&](const std::string& name, std::vector<std::string> extra) {
+        auto a = torusArgs(dir + "/" + name);
+        a.insert(a.end(), {"--sun", "0.3,0.8,0.5", "--sun-irradiance", "4", "--density-scale", "0.1"});
+        a.insert(a.end(), extra.begin(), extra.end());
+        const auto r = runLpmbake(a, dir);
+        EXPECT_EQ(r.code, 0) << r.err;
+        return std::make_pair(r, readBakeFile(dir + "/" + name));
+    };
+    const auto [iso, isoBake] = bake("g0.vdb", {});
+    EXPECT_EQ(metaInt(*isoBake.meta, "lpm:sun_term_count", -1), 0);
+    EXPECT_NE(metaString(*isoBake.meta, "lpm:decisions").find("no exact sun term: g = 0"), std::string::npos);
+    EXPECT_TRUE(isoBake.sunTransmittance.empty());
+
+    const auto [on, onBake] = bake("g5.vdb", {"--g", "0.5"});
+    EXPECT_NE(on.err.find("exact sun term: 1 sun(s) kept out of the SH"), std::string::npos) << on.err;
+    ASSERT_EQ(onBake.sunTransmittance.size(), 1u);
+    EXPECT_TRUE(validateBake(onBake).empty());
+    EXPECT_EQ(metaInt(*onBake.meta, "lpm:format_version", 0), 2);
+    EXPECT_EQ(metaString(*onBake.meta, "lpm:sun_term_0_source"), "--sun");
+    EXPECT_NEAR(metaDouble(*onBake.meta, "lpm:sun_term_g", 0), 0.5, 1e-12);
+    EXPECT_EQ(metaRgb(*onBake.meta, "lpm:sun_term_0_irradiance", RGB(0.f)).g, 4.0f);
+    EXPECT_EQ(onBake.sunTransmittance[0]->activeVoxelCount(), onBake.scatter->activeVoxelCount());
+    float lo = 2, hi = -1;
+    for (auto it = onBake.sunTransmittance[0]->cbeginValueOn(); it; ++it) lo = std::min(lo, *it), hi = std::max(hi, *it);
+    EXPECT_GE(lo, 0.0f);
+    EXPECT_LE(hi, 1.0f);
+    EXPECT_GT(hi, 0.5f);
+
+    // Off: the same S through SH. scatter (direction-averaged S) is the same either way;
+    // band 0 of the SH differs by the sun's single scattering E T Y00 exactly.
+    const auto [off, offBake] = bake("g5off.vdb", {"--g", "0.5", "--sun-term", "off"});
+    EXPECT_EQ(metaInt(*offBake.meta, "lpm:sun_term_count", -1), 0);
+    auto sAcc = onBake.scatter->getConstAccessor(), sOff = offBake.scatter->getConstAccessor();
+    auto h0 = onBake.sh[0]->getConstAccessor(), h0off = offBake.sh[0]->getConstAccessor();
+    auto tAcc = onBake.sunTransmittance[0]->getConstAccessor();
+    int checked = 0;
+    for (auto it = onBake.density->cbeginValueOn(); it && checked < 200; ++it, ++checked) {
+        const openvdb::Coord c = it.getCoord();
+        EXPECT_NEAR(sAcc.getValue(c)[1], sOff.getValue(c)[1], 1e-5 + 1e-5 * sOff.getValue(c)[1]);
+        EXPECT_NEAR(h0off.getValue(c)[1] - h0.getValue(c)[1], 4.0 * tAcc.getValue(c) * 0.28209479,
+                    1e-4 * h0off.getValue(c)[1] + 1e-6);
+    }
+    EXPECT_EQ(checked, 200);
+
+    // A file whose sun grid went missing is not a valid bake.
+    BakeFile broken = onBake;
+    broken.grids.erase(std::remove_if(broken.grids.begin(), broken.grids.end(),
+                                      [](const openvdb::GridBase::Ptr& g) { return g->getName() == "sun_transmittance_0"; }),
+                       broken.grids.end());
+    openvdb::io::File f(dir + "/broken.vdb");
+    f.write(broken.grids, *broken.meta);
+    f.close();
+    const auto info = runLpmbake({"info", dir + "/broken.vdb"}, dir);
+    EXPECT_EQ(info.code, 2);
+    EXPECT_NE(info.out.find("lpm:sun_term_count is 1 but the file has 0"), std::string::npos) << info.out;
+}

@@ -15,6 +15,7 @@
 
 #include "../vdb_io/test_helpers.h"
 #include "core/mc_reference.h"
+#include "cube_vs_mc.h"
 #include "run_helpers.h"
 #include "vdb_io/bake_file.h"
 
@@ -31,42 +32,12 @@ struct EdgeCase {
     double albedo, g;
 };
 
-struct EdgeError {
-    int pixels = 0;          ///< pixels whose whole footprint sees the cube
-    double meanRatio = 0;    ///< sum of render / sum of MC over those pixels and channels
-    double relRms = 0;       ///< RMS of (render - MC) / mean MC
-    double relNoise = 0;     ///< the same for the MC standard error
-};
+using EdgeError = lpmtest::ImageError;
 
 RGB sky(const Vec3& d) {
     // Smooth (the preview's background is bilinear, the reference's piecewise constant).
     const float t = float(0.5 + 0.5 * d.y);
     return RGB(0.1f, 0.09f, 0.08f) * (1 - t) + RGB(0.3f, 0.45f, 0.8f) * t;
-}
-
-/// Ray through pixel coordinates (px, py) hits the MC cube [-kH/2, (kN - 1/2) kH]^3.
-bool hitsCube(const PinholeCamera& cam, double px, double py) {
-    const Vec3 d = cam.rayDirection(px, py);
-    double t0 = 0, t1 = 1e30;
-    for (int a = 0; a < 3; ++a) {
-        double ta = (-0.5 * kH - cam.eye[a]) / d[a], tb = ((kN - 0.5) * kH - cam.eye[a]) / d[a];
-        if (ta > tb) std::swap(ta, tb);
-        t0 = std::max(t0, ta);
-        t1 = std::min(t1, tb);
-    }
-    return t1 > t0;
-}
-
-std::vector<float> readRgb(const std::string& path) {
-    auto in = OIIO::ImageInput::open(path);
-    EXPECT_TRUE(in) << path;
-    if (!in) return {};
-    EXPECT_EQ(in->spec().width, kW);
-    EXPECT_EQ(in->spec().height, kHt);
-    std::vector<float> img(size_t(kW) * kHt * 3);
-    in->read_image(0, 0, 0, 3, OIIO::TypeDesc::FLOAT, img.data());
-    in->close();
-    return img;
 }
 
 /// Bakes and renders the cube with lpmbake, path traces it, and compares the two images
@@ -95,7 +66,7 @@ EdgeError measure(const EdgeCase& c) {
                                              "-q", "-o", dir + "/render.exr"},
                                             dir);
     EXPECT_EQ(render.code, 0) << render.err;
-    const std::vector<float> img = readRgb(dir + "/render.exr");
+    const std::vector<float> img = lpmtest::readRgb(dir + "/render.exr", kW, kHt);
     if (img.empty()) return {};
 
     Medium m;
@@ -121,28 +92,7 @@ EdgeError measure(const EdgeCase& c) {
         out->close();
     }
 
-    EdgeError e;
-    double se = 0, sum = 0, sumR = 0, noise = 0;
-    for (int py = 0; py < kHt; ++py)
-        for (int pxl = 0; pxl < kW; ++pxl) {
-            bool inside = true;
-            for (int k = 0; k < 4; ++k) inside &= hitsCube(cam, pxl + (k & 1), py + (k >> 1));
-            if (!inside) continue;
-            ++e.pixels;
-            const size_t p = size_t(py) * kW + pxl;
-            for (int ch = 0; ch < 3; ++ch) {
-                const double r = img[p * 3 + ch], mc = ref.mean[p * 3 + ch];
-                se += (r - mc) * (r - mc);
-                sum += mc;
-                sumR += r;
-                noise += ref.stdErr[p * 3 + ch] * ref.stdErr[p * 3 + ch];
-            }
-        }
-    const int n = 3 * std::max(1, e.pixels);
-    const double mean = sum / n;
-    e.meanRatio = sumR / sum;
-    e.relRms = std::sqrt(se / n) / mean;
-    e.relNoise = std::sqrt(noise / n) / mean;
+    const EdgeError e = lpmtest::compareOnCube(img, ref, cam, kN, kH);
     std::printf("[ edge ] tau/voxel %.3g albedo %.2f g %.2f: %d pixels, render / MC %.4f, relative RMS %.4f "
                 "(MC noise %.4f)\n",
                 c.tauPerVoxel, c.albedo, c.g, e.pixels, e.meanRatio, e.relRms, e.relNoise);
