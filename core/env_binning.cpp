@@ -6,6 +6,42 @@
 
 namespace lpm {
 
+std::vector<Sun> mergeHotPixels(const std::vector<EnvHotPixel>& hot, int width) {
+    // Union-find over at most 16 pixels: neighbours (8-connected, wrapping in longitude).
+    std::vector<size_t> group(hot.size());
+    for (size_t i = 0; i < hot.size(); ++i) group[i] = i;
+    auto root = [&](size_t i) {
+        while (group[i] != i) i = group[i];
+        return i;
+    };
+    for (size_t i = 0; i < hot.size(); ++i)
+        for (size_t j = i + 1; j < hot.size(); ++j) {
+            const int dx = std::abs(hot[i].x - hot[j].x), dy = std::abs(hot[i].y - hot[j].y);
+            if (dy <= 1 && (dx <= 1 || dx == width - 1)) group[root(j)] = root(i);
+        }
+    std::vector<Sun> suns;
+    for (size_t g = 0; g < hot.size(); ++g) {
+        if (root(g) != g) continue;
+        Vec3 mean{0, 0, 0};
+        RGB irradiance(0.f);
+        double omega = 0;
+        for (size_t i = 0; i < hot.size(); ++i) {
+            if (root(i) != g) continue;
+            const RGB e = hot[i].radiance * float(hot[i].omega);
+            mean = mean + hot[i].toward * double(e.r + e.g + e.b);
+            irradiance = irradiance + e;
+            omega += hot[i].omega;
+        }
+        mean = normalize(mean);
+        // A disc of the group's solid angle, widened to reach its farthest pixel centre.
+        double half = std::acos(std::max(-1.0, 1 - omega / (2 * kPi)));
+        for (size_t i = 0; i < hot.size(); ++i)
+            if (root(i) == g) half = std::max(half, std::acos(std::clamp(dot(mean, hot[i].toward), -1.0, 1.0)));
+        suns.push_back({mean, irradiance, 2 * half * 180.0 / kPi});
+    }
+    return suns;
+}
+
 EnvBinning binEnvironment(const EnvMap& env, const CubeQuadrature& quad, const Mat3& Rinv, double hotShare) {
     const int nd = quad.count();
     EnvBinning out;
@@ -29,10 +65,9 @@ EnvBinning binEnvironment(const EnvMap& env, const CubeQuadrature& quad, const M
         for (const EnvHotPixel& h : hot) {
             if (skip.empty()) skip.assign(size_t(env.width()) * env.height(), 0);
             skip[size_t(h.y) * env.width() + h.x] = 1;
-            const double half = std::acos(std::max(-1.0, 1 - h.omega / (2 * kPi)));
-            out.hotSuns.push_back({h.toward, h.radiance * float(h.omega), 2 * half * 180.0 / kPi});
             out.hotShare += h.share;
         }
+        out.hotSuns = mergeHotPixels(hot, env.width());
     }
     std::vector<double> acc(size_t(nd) * 4, 0.0);
     env.forEachSubPixel(

@@ -268,9 +268,9 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         if (!binned->hotSuns.empty()) {
             char buf[200];
             std::snprintf(buf, sizeof buf,
-                          "environment: %zu hot pixel(s) with %.1f%% of its power swept as suns in their exact "
-                          "direction (each >= %.3g of the power)",
-                          binned->hotSuns.size(), 100 * binned->hotShare, s.envHotShare);
+                          "environment: hot pixels (each >= %.3g of the power) with %.1f%% of its power swept as %zu "
+                          "sun(s) in their exact direction",
+                          s.envHotShare, 100 * binned->hotShare, binned->hotSuns.size());
             res.decisions.push_back(buf);
         }
     } else {

@@ -58,6 +58,38 @@ TEST(EnvBinning, HotPixelBecomesASunAndPowerIsKept) {
     EXPECT_GT(binnedPower(all, q, 0), binnedPower(hot, q, 0) + 0.9 * 5e4 * omega);
 }
 
+TEST(EnvBinning, TouchingHotPixelsAreOneSun) {
+    // A 3 x 3 sun at columns 40-42, rows 9-11, a lone hot pixel far away, and a pair that
+    // touches across the longitude seam (columns 63 and 0): three suns.
+    std::vector<RGB> px(64 * 32, RGB(0.1f));
+    for (int y = 9; y <= 11; ++y)
+        for (int x = 40; x <= 42; ++x) px[size_t(y) * 64 + x] = RGB(2e4f);
+    px[25 * 64 + 10] = RGB(3e4f);
+    px[16 * 64 + 63] = px[16 * 64 + 0] = RGB(3e4f);
+    const EnvMap env(64, 32, px);
+    const CubeQuadrature q(4);
+    const EnvBinning b = binEnvironment(env, q, Mat3::identity(), 0.005);
+    ASSERT_EQ(b.hotSuns.size(), 3u);
+    const std::vector<EnvHotPixel> hot = env.hotPixels(0.005, 16);
+    ASSERT_EQ(hot.size(), 12u);
+    // The big sun: the summed irradiance, toward the centre pixel, a disc reaching the corners.
+    double e = 0;
+    Vec3 centre{0, 0, 0};
+    for (const EnvHotPixel& h : hot)
+        if (h.x >= 40 && h.x <= 42) e += h.radiance.r * h.omega;
+    for (const EnvHotPixel& h : hot)
+        if (h.x == 41 && h.y == 10) centre = h.toward;
+    const Sun* big = nullptr;
+    for (const Sun& s : b.hotSuns)
+        if (s.irradiance.r > 0.8 * e) big = &s;
+    ASSERT_NE(big, nullptr);
+    EXPECT_NEAR(big->irradiance.r, e, 1e-4 * e);
+    EXPECT_GT(dot(big->toSun, centre), std::cos(0.02));  // within about a third of a pixel
+    const double pixelDeg = 180.0 / 32;
+    EXPECT_GT(big->angularDiameterDeg, 2 * pixelDeg);  // the 3 x 3 block is ~3 pixels across
+    EXPECT_LT(big->angularDiameterDeg, 4 * pixelDeg);
+}
+
 TEST(LpmCache, ComputesOnceAndSolvesIdentically) {
     const Medium m = test::makeVolume(test::VolumeKind::Cloud, 12, 4.0);
     const EnvMap env = mapWithHotPixel(5e3f);
