@@ -10,6 +10,7 @@
 #include "baker/bake_metadata.h"
 #include "baker/options.h"
 #include "baker/peak_memory.h"
+#include "baker/sidecar.h"
 #include "baker/text_format.h"
 #include "core/parallel.h"
 #include "core/sh.h"
@@ -318,6 +319,7 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
              std::to_string(wr.voxelsWritten) + " voxels, " + std::to_string(sum.passes) + " passes, residual " +
              fmt(res.residual) + ", " + fmt(sum.secondsTotal) + " s, peak memory " +
              fmt(double(sum.peakRssKiB) / 1024.0) + " MiB");
+    if (!o.sidecarPath.empty()) writeSidecar(o.sidecarPath, o.output, wr.gridNames, meta, {o.input, o.env, o.output});
     if (!o.statsPath.empty()) writeStats(o, sum, vol.empty ? nullptr : &res);
     return sum;
 }

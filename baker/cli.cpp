@@ -323,6 +323,9 @@ int runCli(int argc, char** argv) {
     app.add_flag("--half", b.half, "store 16-bit floats (warns when values exceed 65504)")->group(gO);
     app.add_flag("--no-density", b.noDensity, "do not copy the density grid into the output")->group(gO);
     app.add_option("--stats", b.statsPath, "write timings, voxel counts, passes, memory as JSON")->group(gO);
+    app.add_option("--sidecar", b.sidecarPath,
+                   "also write the bake's lpm:* metadata and grid names as JSON (for tools that cannot read VDB "
+                   "metadata, e.g. Blender)")->group(gO);
     app.add_option("--threads", b.threads, "worker threads (default: $SLURM_CPUS_PER_TASK, else all cores)")
         ->group(gO);
     app.add_flag("-v,--verbose", verbose, "more messages (per-pass progress)")->group(gO);

@@ -67,6 +67,7 @@ struct BakeOptions {
     double solveScale = 1.0;  ///< solve voxels per input voxel along each axis, in [0.05, 8]
     int sunTerm = -1;  ///< exact sun term: -1 auto (when g != 0), 0 off, 1 on (core/sun_term.h)
     std::string statsPath;
+    std::string sidecarPath;  ///< the metadata as JSON beside the bake (baker/sidecar.h); may be empty
     std::string commandLine;  ///< recorded in the metadata
 };
 

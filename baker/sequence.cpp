@@ -199,6 +199,7 @@ BakeOptions frameOptions(const BakeOptions& pattern, int frame) {
     o.input = expandFramePattern(pattern.input, frame);
     o.output = expandFramePattern(pattern.output, frame);
     o.env = expandFramePattern(pattern.env, frame);
+    o.sidecarPath = expandFramePattern(pattern.sidecarPath, frame);
     // One stats file per frame when the path has a pattern; else the sequence writes one.
     o.statsPath = hasFramePattern(pattern.statsPath) ? expandFramePattern(pattern.statsPath, frame) : "";
     return o;
@@ -218,6 +219,7 @@ std::string pendingReason(const BakeOptions& o) {
     } catch (const Error& e) {
         return std::string("the output cannot be read: ") + e.what();
     }
+    if (!o.sidecarPath.empty() && mtimeNs(o.sidecarPath) < 0) return "no sidecar " + o.sidecarPath;
     if (mtimeNs(o.input) > tOut) return "the input is newer than the output";
     if (mtimeNs(o.env) > tOut) return "the environment is newer than the output";
     return "";

@@ -186,6 +186,7 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
         for (auto& g : grids) g->setSaveFloatAsHalf(true);
     }
 
+    for (const auto& g : grids) rep.gridNames.push_back(g->getName());
     try {
         openvdb::io::File f(out.tempPath());
         // zip rather than Blosc: Blosc version mismatches have broken reads elsewhere.

@@ -77,6 +77,7 @@ struct BakeWriteReport {
     std::uint64_t shellVoxels = 0;    ///< of which the shell around the density's active voxels
     std::uint64_t shellDropped = 0;   ///< shell voxels without solved S, left inactive (0 from readVolume)
     double seconds = 0;
+    std::vector<std::string> gridNames;  ///< the grids written, in file order
 };
 
 /// Builds the grids on `density`'s transform (the lighting grids on lightingTopology(),

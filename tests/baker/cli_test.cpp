@@ -498,3 +498,35 @@ TEST(Cli, SunTermIsChosenRecordedAndValidated) {
     EXPECT_EQ(info.code, 2);
     EXPECT_NE(info.out.find("lpm:sun_term_count is 1 but the file has 0"), std::string::npos) << info.out;
 }
+
+// --sidecar: the file's lpm:* metadata and grid names as JSON, for tools that cannot read
+// VDB metadata; in a sequence one per frame, and a missing one makes the frame pending.
+TEST(Cli, SidecarHoldsTheFilesMetadata) {
+    const std::string dir = lpmtest::scratchDir();
+    auto a = torusArgs(dir + "/out.vdb");
+    a.insert(a.end(), {"--sun", "0.3,0.8,0.5", "--g", "0.5", "--sidecar", dir + "/out.json"});
+    const auto r = runLpmbake(a, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    const std::string js = lpmtest::readAll(dir + "/out.json");
+    const BakeFile b = readBakeFile(dir + "/out.vdb");
+    int keys = 0;
+    for (auto it = b.meta->beginMeta(); it != b.meta->endMeta(); ++it, ++keys)
+        EXPECT_NE(js.find("\"" + it->first + "\": "), std::string::npos) << it->first;
+    EXPECT_GT(keys, 50);
+    EXPECT_NE(js.find("\"bake\": \"out.vdb\""), std::string::npos);
+    EXPECT_NE(js.find("\"sun_transmittance_0\""), std::string::npos);
+    EXPECT_NE(js.find("\"lpm:sun_term_0_toward\": [0.303"), std::string::npos) << js;
+
+    const std::string seqDir = dir + "/seq";
+    fs::create_directories(seqDir);
+    for (int f : {2, 3}) fs::copy_file(dataPath("vdb/smoke_seq.000" + std::to_string(f) + ".vdb"),
+                                       seqDir + "/in.000" + std::to_string(f) + ".vdb");
+    std::vector<std::string> s = {seqDir + "/in.####.vdb", "--frames", "2-3", "--sun", "0,1,0", "-o",
+                                  seqDir + "/out.####.vdb", "--sidecar", seqDir + "/out.####.json", "-q"};
+    s.insert(s.end(), kCheap.begin(), kCheap.end());
+    ASSERT_EQ(runLpmbake(s, dir).code, 0);
+    EXPECT_TRUE(fs::exists(seqDir + "/out.0002.json"));
+    fs::remove(seqDir + "/out.0003.json");
+    s.push_back("--list-pending");
+    EXPECT_EQ(runLpmbake(s, dir).out, "3\n");
+}
