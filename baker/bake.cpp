@@ -60,6 +60,8 @@ void checkOptions(const BakeOptions& o) {
     const LpmSettings& s = o.solver;
     if (s.directionsPerFace < 1) throw UsageError("--directions-per-face must be >= 1");
     if (s.raysPerVoxel < 1 || s.raysPerVoxel > 16) throw UsageError("--rays-per-voxel must be in 1..16");
+    if (s.raysHigherOrders != -1 && (s.raysHigherOrders < 1 || s.raysHigherOrders > 16))
+        throw UsageError("--rays-higher-orders must be -1 (auto) or in 1..16, got " + std::to_string(s.raysHigherOrders));
     if (s.binsPerFace < -1) throw UsageError("--bins-per-face must be -1 (auto), 0 or more");
     if (s.shOrder < 0 || s.shOrder > kMaxShOrder) throw UsageError("--sh-order must be in 0..3");
     if (!(s.tolerance > 0)) throw UsageError("--tolerance must be positive");

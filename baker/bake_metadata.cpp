@@ -44,6 +44,7 @@ std::string canonicalSettings(const BakeOptions& o) {
     const LpmSettings& s = o.solver;
     num("directions_per_face", s.directionsPerFace);
     num("rays_per_voxel", s.raysPerVoxel);
+    num("rays_higher_orders", s.raysHigherOrders);
     num("bins_per_face", s.binsPerFace);
     num("sh_order", s.shOrder);
     num("tolerance", s.tolerance);
@@ -149,6 +150,7 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
     str("lights", lightsDesc);
     i32("directions_per_face", o.solver.directionsPerFace);
     i32("rays_per_voxel", o.solver.raysPerVoxel);
+    i32("rays_higher_orders", o.solver.raysHigherOrders);
     i32("bins_per_face", o.solver.binsPerFace);
     dbl("tolerance", o.solver.tolerance);
     i32("max_orders", o.solver.maxOrders);

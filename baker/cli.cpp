@@ -245,6 +245,10 @@ int runCli(int argc, char** argv) {
                    "n: n x n propagation directions per cube face")->default_val(b.solver.directionsPerFace)->group(gS);
     app.add_option("--rays-per-voxel", b.solver.raysPerVoxel, "ray-map rays per voxel per lateral axis (1..16)")
         ->default_val(b.solver.raysPerVoxel)->group(gS);
+    app.add_option("--rays-higher-orders", b.solver.raysHigherOrders,
+                   "rays per voxel of the multiple-scattering passes: -1 auto (1 when the two-grid solve runs, "
+                   "else --rays-per-voxel), or 1..16")
+        ->default_val(b.solver.raysHigherOrders)->group(gS);
     app.add_option("--bins-per-face", b.solver.binsPerFace, "unshot bins: -1 auto, 0 isotropic, b = b x b per face")
         ->default_val(b.solver.binsPerFace)->group(gS);
     app.add_option("--sh-order", b.solver.shOrder, "SH order of the result, 0..3")

@@ -163,6 +163,9 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
     if (!(s.tolerance > 0)) throw Error("LPM", "tolerance must be positive, got " + std::to_string(s.tolerance));
     if (s.multires < -1 || s.multires > 1)
         throw Error("LPM", "multi-resolution must be -1 (auto), 0 or 1, got " + std::to_string(s.multires));
+    if (s.raysHigherOrders != -1 && (s.raysHigherOrders < 1 || s.raysHigherOrders > 16))
+        throw Error("LPM", "rays per voxel of the higher orders must be -1 or in 1..16, got " +
+                               std::to_string(s.raysHigherOrders));
     if (s.multiresAfter < 1)
         throw Error("LPM", "full-resolution passes before the coarse grid must be >= 1, got " + std::to_string(s.multiresAfter));
     if (s.maxOrders < 1) throw Error("LPM", "max orders must be at least 1, got " + std::to_string(s.maxOrders));
@@ -324,7 +327,7 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         }
     }
     std::vector<float> unshot(perVoxel * N, 0.0f), next(perVoxel * N, 0.0f);
-    const int r = s.raysPerVoxel;
+    int r = s.raysPerVoxel;  // pass 0; the later passes use raysHigherOrders
     const size_t batchMem = size_t(512) << 20;
     const size_t maxBatch = std::max<size_t>(1, batchMem / std::max<size_t>(1, N * 3 * M * sizeof(float)));
 
@@ -534,6 +537,16 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
                                 : (std::to_string(N) + " stored voxels < " + std::to_string(s.multiresMinVoxels)).c_str());
         res.decisions.push_back(buf);
     }
+    // Rays of the passes after the first. Auto: one per voxel when the two-grid solve runs:
+    // there the fine passes after single scattering propagate sums of smooth higher orders
+    // (band-0 error against MC unchanged on plume-1M, docs/performance.md).
+    const int raysHigher = s.raysHigherOrders > 0 ? s.raysHigherOrders : (coarseFrom > 0 ? 1 : s.raysPerVoxel);
+    if (raysHigher != r) {
+        r = raysHigher;
+        res.decisions.push_back("multiple scattering with " + std::to_string(r) + " ray(s) per voxel" +
+                                (s.raysHigherOrders > 0 ? " (requested)" : " (two-grid solve: smooth sources)") +
+                                ", single scattering with " + std::to_string(s.raysPerVoxel));
+    }
     // Two-grid continuation (docs/multires.md). The remaining sum X of sources solves
     // X = B + K X (B = the current source `next`, K one fine pass). A cycle restricts the
     // source r still to be distributed (first B) to the coarse grid, iterates the orders
@@ -550,6 +563,7 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         cs.multires = 0;
         cs.cache = cache;
         cs.binsPerFace = binsPerFace;  // the restricted source is in these bins
+        cs.raysPerVoxel = cs.raysHigherOrders = r;
         const int n = s.directionsPerFace, half = n / 2;
         cs.directionsPerFace =
             s.multiresDirections > 0 ? s.multiresDirections

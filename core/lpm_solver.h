@@ -20,6 +20,8 @@ class LpmCache;
 struct LpmSettings {
     int directionsPerFace = 4;  ///< n: n x n propagation directions per cube face (6 n^2 in all)
     int raysPerVoxel = 2;       ///< ray-map rays per voxel along each lateral axis (r^2 per voxel face)
+    int raysHigherOrders = -1;  ///< rays per voxel of the passes after the first (multiple scattering):
+                                ///< -1 auto (1 when the two-grid solve runs, else raysPerVoxel), or 1..16
     int binsPerFace = -1;       ///< unshot bins: -1 auto (1 isotropic bin when g == 0, else 2x2 per face
                                 ///< when n is even, n x n for n = 1 or 3, else 1 per face); must divide n;
                                 ///< 0 = one isotropic bin, b = b x b per face

@@ -7,7 +7,9 @@
 // Settings: default (what the planner picks), full (every order at full resolution),
 // two-grid (multi-resolution forced on),
 // after2 (two full-resolution passes before the coarse grid), coarse-n4 (the coarse grid
-// keeps the fine directions).
+// keeps the fine directions), r2-higher (2 rays per voxel in every pass, the default before
+// raysHigherOrders), r1-all (1 ray per voxel in every pass, single scattering too), k8
+// (GMRES when plain iteration would need more than 8 more passes).
 #include <sys/resource.h>
 
 #include <cstdio>
@@ -45,6 +47,9 @@ LpmSettings settingsNamed(const std::string& name) {
     else if (name == "two-grid") s.multires = 1;
     else if (name == "after2") s.multiresAfter = 2;
     else if (name == "coarse-n4") s.multiresDirections = 4;
+    else if (name == "r2-higher") s.raysHigherOrders = 2;  // the default before raysHigherOrders
+    else if (name == "r1-all") s.raysPerVoxel = 1;
+    else if (name == "k8") s.krylovAfter = 8;
     else if (name != "default") {
         std::fprintf(stderr, "unknown setting '%s'\n", name.c_str());
         std::exit(2);
