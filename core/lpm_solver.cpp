@@ -116,6 +116,29 @@ void sweepSunTerms(const Medium& m, const std::vector<Sun>& suns, size_t explici
     }
 }
 
+/// The jobs grouped into sweep batches (sweepStepBatch): one per sweep axis and source, in
+/// order of first appearance, each dealt alternately into `split` batches in job order. The
+/// grouping depends on the jobs only, never on the thread count.
+static std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>& jobs, int split) {
+    auto sameKey = [](const Job& a, const Job& b) {
+        return a.axis == b.axis && a.src == b.src && a.srcStride == b.srcStride && a.srcScale.r == b.srcScale.r &&
+               a.srcScale.g == b.srcScale.g && a.srcScale.b == b.srcScale.b;
+    };
+    std::vector<std::vector<const Job*>> keys;
+    for (const Job& j : jobs) {
+        auto it = std::find_if(keys.begin(), keys.end(), [&](const auto& k) { return sameKey(*k[0], j); });
+        if (it == keys.end()) keys.push_back({&j});
+        else it->push_back(&j);
+    }
+    std::vector<std::vector<const Job*>> batches;
+    for (const auto& k : keys) {
+        const size_t first = batches.size(), n = std::min(k.size(), size_t(split));
+        batches.resize(first + n);
+        for (size_t i = 0; i < k.size(); ++i) batches[first + i % n].push_back(k[i]);
+    }
+    return batches;
+}
+
 static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSettings& s, double gOut,
                            const std::vector<float>* initialSource = nullptr) {
     const auto t0 = Clock::now();
@@ -381,20 +404,23 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
 
     // Isotropic bins, SH order 0 and a voxel-constant source: every job folds as one scalar
     // (its bin coefficient) times the same pair (1 for the bin, shPerBin for band 0), so jobs
-    // deposit straight into kGroups fixed accumulators, job j into group j % kGroups in job
-    // order: no per-direction buffer and no fold pass, and the same sums for any thread count.
-    constexpr size_t kGroups = 8;
+    // deposit straight into fixed accumulators: no per-direction buffer and no fold pass.
+    // The accumulators are the sweep batches (jobs of one axis and one source, dealt
+    // alternately into kBatchSplit groups, in job order; sweepStepBatch shares their planes),
+    // so the sums are the same for any thread count.
+    constexpr int kBatchSplit = 2;
     const bool isotropicFold = M == 1 && nb == 1 && nc == 1;
     auto runJobsIsotropic = [&](const std::vector<Job>& jobs, Tally& total, bool depositSh, std::vector<float>& out) {
-        const size_t G = std::min(kGroups, jobs.size());
         const double shPerBin = jobs.empty() ? 0.0 : jobs[0].shCoef[0] / jobs[0].binCoef[0];
+        const float perWeight = jobs.empty() ? 0.0f : float(jobs[0].binCoef[0] / jobs[0].weight);
+        const std::vector<std::vector<const Job*>> batches = sweepBatches(jobs, kBatchSplit);
+        const size_t G = batches.size();
         std::vector<std::vector<float>> acc(G);
-        std::vector<Tally> tallies(jobs.size());
+        std::vector<Tally> tallies(G);
         parallelForChunks(G, 1, [&](size_t gb, size_t ge) {
             for (size_t g = gb; g < ge; ++g) {
                 acc[g].assign(N * 3, 0.0f);
-                for (size_t j = g; j < jobs.size(); j += G)
-                    sweepStep(m, jobs[j], r, acc[g].data(), tallies[j], float(jobs[j].binCoef[0]));
+                sweepStepBatch(m, batches[g], r, acc[g].data(), tallies[g], perWeight);
             }
         });
         for (const Tally& t : tallies) total.add(t);
@@ -407,11 +433,13 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
             }
         });
     };
+    // Every job of the isotropic fold must share the SH-per-bin and bin-per-weight ratios.
     auto sameFoldShape = [&](const std::vector<Job>& jobs) {
         if (jobs.empty()) return true;
-        const double ratio = jobs[0].shCoef[0] / jobs[0].binCoef[0];
+        const double ratio = jobs[0].shCoef[0] / jobs[0].binCoef[0], perWeight = jobs[0].binCoef[0] / jobs[0].weight;
+        auto near = [](double a, double b) { return std::fabs(a - b) <= 1e-9 * std::fabs(b); };
         for (const Job& j : jobs)
-            if (!(std::fabs(j.shCoef[0] / j.binCoef[0] - ratio) <= 1e-9 * std::fabs(ratio))) return false;
+            if (!near(j.shCoef[0] / j.binCoef[0], ratio) || !near(j.binCoef[0] / j.weight, perWeight)) return false;
         return true;
     };
     auto runJobsAny = [&](const std::vector<Job>& jobs, Tally& total, bool depositSh, std::vector<float>& out) {

@@ -68,8 +68,11 @@ constexpr int kLanes = 8, kChunk = 7 * kLanes;
 
 // One segment of length len for `chunks` x 8 rays (ray row L: channels nuPad apart) over
 // as many voxels of a plane row (chunk layout above).
+// Deposits are added times dk (1 for a sweep of its own planes; the job's tally weight
+// when the planes are shared by a batch).
 template <bool Source>
-LPM_SIMD_CLONES void segmentChunks(int chunks, float len, float* __restrict plane, float* __restrict L, size_t nuPad) {
+LPM_SIMD_CLONES void segmentChunks(int chunks, float len, float dk, float* __restrict plane, float* __restrict L,
+                                   size_t nuPad) {
     const float len2 = len * len;
     float* __restrict L0 = L;
     float* __restrict L1 = L + nuPad;
@@ -97,13 +100,13 @@ LPM_SIMD_CLONES void segmentChunks(int chunks, float len, float* __restrict plan
                 L0[i] = L0[i] * T + q[i] * e1;
                 L1[i] = L1[i] * T + q[kLanes + i] * e1;
                 L2[i] = L2[i] * T + q[2 * kLanes + i] * e1;
-                d[i] += I0;
-                d[kLanes + i] += I1;
-                d[2 * kLanes + i] += I2;
+                d[i] += dk * I0;
+                d[kLanes + i] += dk * I1;
+                d[2 * kLanes + i] += dk * I2;
             } else {
-                d[i] += L0[i] * e1;
-                d[kLanes + i] += L1[i] * e1;
-                d[2 * kLanes + i] += L2[i] * e1;
+                d[i] += dk * (L0[i] * e1);
+                d[kLanes + i] += dk * (L1[i] * e1);
+                d[2 * kLanes + i] += dk * (L2[i] * e1);
                 L0[i] *= T;
                 L1[i] *= T;
                 L2[i] *= T;
@@ -192,20 +195,194 @@ void mergeEvents(const std::vector<double>& lu, const std::vector<double>& lv, d
     }
 }
 
-// The state of one sweepStep call: rays, the current tile layer's planes and the tallies.
-// The medium is read and the deposits written one 8^3 tile at a time, in storage order.
-// Planes (planeIndex): per tile row, the chunks of its allocated span over all layers;
-// voxel row (cv, slice s of the layer) holds one chunk per tile of the span, lane cu % 8.
+// A block seen along sweep axis a: tile layers along a, tile rows tv along v, tiles tu
+// along u, and where each tile lies in storage.
+struct AxisFrame {
+    static constexpr int K = Medium::kTile;
+    const Medium& m;
+    int a, u, v, nu, nv, na, tnu, tnv, tna;
+    AxisFrame(const Medium& m_, int axis) : m(m_), a(axis), u((axis + 1) % 3), v((axis + 2) % 3) {
+        const int N[3] = {m.nx, m.ny, m.nz};
+        nu = N[u];
+        nv = N[v];
+        na = N[a];
+        tnu = (nu + K - 1) / K;
+        tnv = (nv + K - 1) / K;
+        tna = (na + K - 1) / K;
+    }
+    // Slot of tile (tu, tv) of tile layer `layer`: -1 dense storage, -2 unallocated.
+    std::int32_t tileSlot(int layer, int tu, int tv) const {
+        if (!m.sparse()) return -1;
+        int t3[3];
+        t3[a] = layer;
+        t3[u] = tu;
+        t3[v] = tv;
+        const std::int32_t s = m.tileSlot[size_t(t3[0]) + size_t(m.tilesX()) * (size_t(t3[1]) + size_t(m.tilesY()) * t3[2])];
+        return s < 0 ? -2 : s;
+    }
+    // Where tile (layer, tu, tv) lies in storage: the storage index of its first voxel,
+    // the strides along u, v and the sweep axis, and its extent inside the block.
+    struct TileWalk {
+        size_t base, sU, sV, sA;
+        int nU, nV, nA;
+    };
+    TileWalk tileWalk(std::int32_t slot, int layer, int tu, int tv) const {
+        int t3[3];
+        t3[a] = layer;
+        t3[u] = tu;
+        t3[v] = tv;
+        size_t stride[3];
+        TileWalk w;
+        if (slot >= 0) {
+            stride[0] = 1, stride[1] = K, stride[2] = K * K;
+            w.base = size_t(slot) * Medium::kTileVoxels;
+        } else {
+            stride[0] = 1, stride[1] = size_t(m.nx), stride[2] = size_t(m.nx) * m.ny;
+            w.base = size_t(t3[0]) * K + stride[1] * size_t(t3[1] * K) + stride[2] * size_t(t3[2] * K);
+        }
+        w.sU = stride[u];
+        w.sV = stride[v];
+        w.sA = stride[a];
+        w.nU = std::min(K, nu - tu * K);
+        w.nV = std::min(K, nv - tv * K);
+        w.nA = std::min(K, na - layer * K);
+        return w;
+    }
+    // First and last allocated tile of tile row tv in a layer (-1, -1 when none).
+    void rowExtent(int layer, int tv, int& first, int& last) const {
+        first = last = -1;
+        for (int tu = 0; tu < tnu; ++tu)
+            if (tileSlot(layer, tu, tv) != -2) {
+                if (first < 0) first = tu;
+                last = tu;
+            }
+    }
+};
+
+// Plane storage of one tile row tv in one tile layer: the chunks of tiles first ..
+// first + width - 1; voxel row (cv, slice s of the layer) holds one chunk per tile.
+struct PlaneRow {
+    size_t base = 0;
+    int first = 0, width = 0;
+};
+
+// Plane offset of the sigma of (row cv, slice s of the layer, column cu); cu must lie in
+// the row's span.
+inline size_t planeIndex(const PlaneRow* rows, int cv, int s, int cu) {
+    constexpr int K = Medium::kTile;
+    const PlaneRow& pr = rows[cv / K];
+    return pr.base + (size_t((cv % K) * K + s) * pr.width + size_t(cu / K - pr.first)) * kChunk + size_t(cu % K);
+}
+
+// One tile into the planes (sigma, the source q = sigma srcScale src, deposits zeroed); an
+// unallocated tile inside a span reads as empty.
+void gatherTile(const AxisFrame& f, const Job& job, const PlaneRow* rows, float* P, int layer, int tu, int tv) {
+    constexpr int K = Medium::kTile;
+    const std::int32_t slot = f.tileSlot(layer, tu, tv);
+    const AxisFrame::TileWalk w = f.tileWalk(slot == -2 ? -1 : slot, layer, tu, tv);
+    const float sc[3] = {job.srcScale.r, job.srcScale.g, job.srcScale.b};
+    const float* sigma = f.m.sigmaT.data();
+    const float* src = job.src;
+    const size_t ss = job.srcStride;
+    for (int s = 0; s < w.nA; ++s)
+        for (int lv = 0; lv < w.nV; ++lv) {
+            float* q = &P[planeIndex(rows, tv * K + lv, s, tu * K)];
+            std::fill_n(q, kChunk, 0.0f);
+            if (slot == -2) continue;
+            const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
+            for (int lu = 0; lu < w.nU; ++lu) {
+                const size_t x = x0 + size_t(lu) * w.sU;
+                const float sg = sigma[x];
+                q[lu] = sg;
+                if (src)
+                    for (int c = 0; c < 3; ++c) q[(1 + c) * kLanes + lu] = sg * sc[c] * src[x * ss + c];
+            }
+        }
+}
+
+// Adds one allocated tile's deposits times k to phi; sums sigma d (sca) and q (src).
+void scatterTile(const AxisFrame& f, const PlaneRow* rows, const float* P, int layer, int tu, int tv, float k,
+                 float* phi, double sca[3], double src[3]) {
+    constexpr int K = Medium::kTile;
+    const std::int32_t slot = f.tileSlot(layer, tu, tv);
+    if (slot == -2) return;
+    const AxisFrame::TileWalk w = f.tileWalk(slot, layer, tu, tv);
+    float ts[3] = {0, 0, 0}, tq[3] = {0, 0, 0};
+    for (int s = 0; s < w.nA; ++s)
+        for (int lv = 0; lv < w.nV; ++lv) {
+            const float* q = &P[planeIndex(rows, tv * K + lv, s, tu * K)];
+            const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
+            for (int lu = 0; lu < w.nU; ++lu) {
+                float* ph = &phi[(x0 + size_t(lu) * w.sU) * 3];
+                for (int c = 0; c < 3; ++c) {
+                    const float d = q[(4 + c) * kLanes + lu];
+                    ph[c] += k * d;
+                    ts[c] += q[lu] * d;
+                    tq[c] += q[(1 + c) * kLanes + lu];
+                }
+            }
+        }
+    for (int c = 0; c < 3; ++c) {
+        sca[c] += ts[c];
+        src[c] += tq[c];
+    }
+}
+
+// The planes of one sweep axis for every tile layer, each tile row covering the span of
+// its allocated tiles in that layer: built once for a batch of jobs that share the axis
+// and the source (sweepStepBatch), their deposits accumulating in place.
+class AxisPlanes {
+public:
+    AxisPlanes(const Medium& m, int axis, const Job& srcJob) : f_(m, axis) {
+        rows_.resize(size_t(f_.tna) * f_.tnv);
+        size_t total = 0;
+        for (int layer = 0; layer < f_.tna; ++layer)
+            for (int tv = 0; tv < f_.tnv; ++tv) {
+                int first, last;
+                f_.rowExtent(layer, tv, first, last);
+                PlaneRow& pr = rows_[size_t(layer) * f_.tnv + tv];
+                pr.first = first < 0 ? 0 : first;
+                pr.width = first < 0 ? 0 : last - first + 1;
+                pr.base = total;
+                total += size_t(pr.width) * Medium::kTileVoxels / Medium::kTile * kChunk;
+            }
+        P_.assign(total, 0.0f);
+        for (int layer = 0; layer < f_.tna; ++layer)
+            for (int tv = 0; tv < f_.tnv; ++tv) {
+                const PlaneRow& pr = rows_[size_t(layer) * f_.tnv + tv];
+                for (int tu = pr.first; tu < pr.first + pr.width; ++tu) gatherTile(f_, srcJob, rows(layer), P_.data(), layer, tu, tv);
+            }
+    }
+    const PlaneRow* rows(int layer) const { return &rows_[size_t(layer) * f_.tnv]; }
+    float* data() { return P_.data(); }
+    // phi += k * the accumulated deposits; sums sigma d and the source q over the block.
+    void scatter(float k, float* phi, double sca[3], double src[3]) const {
+        for (int layer = 0; layer < f_.tna; ++layer)
+            for (int tv = 0; tv < f_.tnv; ++tv) {
+                const PlaneRow& pr = rows(layer)[tv];
+                for (int tu = pr.first; tu < pr.first + pr.width; ++tu)
+                    scatterTile(f_, rows(layer), P_.data(), layer, tu, tv, k, phi, sca, src);
+            }
+    }
+
+private:
+    AxisFrame f_;
+    std::vector<PlaneRow> rows_;  // [layer][tv]
+    std::vector<float> P_;
+};
+
+// The state of one sweep: rays, the planes of the current tile layer and the tallies. With
+// its own planes the medium is read and the deposits written one 8^3 tile at a time, in
+// storage order; with shared AxisPlanes the deposits stay there, times the job's weight.
 // Rays: row (cell v, class) at (cellV r^2 + class) 3 nuPad, lane = column (a u crossing
 // shifts the row), columns >= nu are padding.
 class StepSweep {
 public:
     static constexpr int K = Medium::kTile;
 
-    StepSweep(const Medium& m, const Job& job, int r, float depositScale)
-        : m_(m), job_(job), g_(m, job, r), depositScale_(depositScale) {
-        tnu_ = (g_.nu + K - 1) / K;
-        const size_t nuPad = size_t(tnu_) * K;
+    StepSweep(const Medium& m, const Job& job, int r, float depositScale, AxisPlanes* shared = nullptr)
+        : m_(m), job_(job), g_(m, job, r), f_(m, job.axis), depositScale_(depositScale), shared_(shared) {
+        const size_t nuPad = size_t(f_.tnu) * K;
         rowStride_ = 3 * nuPad;
         L_.assign(size_t(r) * r * g_.nv * rowStride_, 0.0f);
         pending_.assign(size_t(r) * r * g_.nv, 0);
@@ -215,7 +392,8 @@ public:
         }
         for (size_t row = 0; row < L_.size(); row += rowStride_)
             for (int c = 0; c < 3; ++c) std::fill_n(&L_[row + c * nuPad], nuPad, bnd_[c]);
-        allocatePlanes();
+        dk_ = shared ? float(g_.aPerp * job.weight) : 1.0f;
+        if (!shared) allocatePlanes();
         spanLo_.assign(size_t(g_.nv), 0);
         spanHi_.assign(size_t(g_.nv), 0);
         stU_.resize(size_t(r));
@@ -227,13 +405,13 @@ public:
     }
 
     void run(float* phi, Tally& tally) {
-        const int layers = (g_.na + K - 1) / K;
+        const int layers = f_.tna;
         for (int l = 0; l < layers; ++l) {
             const int layer = job_.sign > 0 ? l : layers - 1 - l;
-            const bool any = gather(layer);
+            const bool any = shared_ ? useShared(layer) : gather(layer);
             const int s0 = layer * K, s1 = std::min(g_.na, s0 + K);
             for (int k = 0; k < s1 - s0; ++k) sweepSlice(job_.sign > 0 ? s0 + k : s1 - 1 - k, any);
-            if (any) scatter(layer, phi);
+            if (any && !shared_) scatter(layer, phi);
         }
         const size_t nuPad = rowStride_ / 3;
         for (size_t row = 0; row < L_.size(); row += rowStride_) applyShift(row);
@@ -252,161 +430,74 @@ public:
     }
 
 private:
-    // Slot of tile (tu, tv) of tile layer `layer`: -1 dense storage, -2 unallocated.
-    std::int32_t tileSlot(int layer, int tu, int tv) const {
-        if (!m_.sparse()) return -1;
-        int t3[3];
-        t3[g_.a] = layer;
-        t3[g_.u] = tu;
-        t3[g_.v] = tv;
-        const std::int32_t s =
-            m_.tileSlot[size_t(t3[0]) + size_t(m_.tilesX()) * (size_t(t3[1]) + size_t(m_.tilesY()) * t3[2])];
-        return s < 0 ? -2 : s;
-    }
-
-    // The planes cover, per tile row tv, only the tiles between the first and the last
-    // allocated one over all layers (rowFirst_, rowWidth_), so a sparse volume in a large box
-    // costs no plane memory for its empty space.
+    // The per-layer planes cover, per tile row tv, the tiles between the first and the last
+    // allocated one over all layers, so a sparse volume in a large box costs no plane
+    // memory for its empty space.
     void allocatePlanes() {
-        const int tnv = (g_.nv + K - 1) / K, tna = (g_.na + K - 1) / K;
-        rowFirst_.assign(size_t(tnv), 0);
-        rowWidth_.assign(size_t(tnv), 0);
-        rowBase_.assign(size_t(tnv), 0);
+        ownRows_.assign(size_t(f_.tnv), PlaneRow{});
         size_t total = 0;
-        for (int tv = 0; tv < tnv; ++tv) {
-            int first = tnu_, last = -1;
-            for (int layer = 0; layer < tna; ++layer)
-                for (int tu = 0; tu < tnu_; ++tu)
-                    if (tileSlot(layer, tu, tv) != -2) {
-                        first = std::min(first, tu);
-                        last = std::max(last, tu);
-                    }
-            rowFirst_[tv] = last < 0 ? 0 : first;
-            rowWidth_[tv] = last < 0 ? 0 : last - first + 1;
-            rowBase_[tv] = total;
-            total += size_t(rowWidth_[tv]) * K * K * kChunk;
-        }
-        P_.assign(total, 0.0f);
-    }
-
-    // Plane offset of the sigma of (row cv, slice s of the layer, column cu); cu must lie
-    // in an allocated tile's span of its tile row.
-    size_t planeIndex(int cv, int s, int cu) const {
-        const int tv = cv / K;
-        return rowBase_[tv] + (size_t((cv % K) * K + s) * rowWidth_[tv] + size_t(cu / K - rowFirst_[tv])) * kChunk +
-               size_t(cu % K);
-    }
-
-    // Where tile (layer, tu, tv) lies in storage: the storage index of its first voxel,
-    // the strides along u, v and the sweep axis, and its extent inside the block.
-    struct TileWalk {
-        size_t base, sU, sV, sA;
-        int nU, nV, nA;
-    };
-    TileWalk tileWalk(std::int32_t slot, int layer, int tu, int tv) const {
-        int t3[3];
-        t3[g_.a] = layer;
-        t3[g_.u] = tu;
-        t3[g_.v] = tv;
-        size_t stride[3];
-        TileWalk w;
-        if (slot >= 0) {
-            stride[0] = 1, stride[1] = K, stride[2] = K * K;
-            w.base = size_t(slot) * Medium::kTileVoxels;
-        } else {
-            stride[0] = 1, stride[1] = size_t(m_.nx), stride[2] = size_t(m_.nx) * m_.ny;
-            w.base = size_t(t3[0]) * K + stride[1] * size_t(t3[1] * K) + stride[2] * size_t(t3[2] * K);
-        }
-        w.sU = stride[g_.u];
-        w.sV = stride[g_.v];
-        w.sA = stride[g_.a];
-        w.nU = std::min(K, g_.nu - tu * K);
-        w.nV = std::min(K, g_.nv - tv * K);
-        w.nA = std::min(K, g_.na - layer * K);
-        return w;
-    }
-
-    // Fills the layer's planes over the span of allocated tiles of each tile row; returns
-    // whether the layer holds any allocated tile.
-    bool gather(int layer) {
-        const int tnv = (g_.nv + K - 1) / K;
-        bool any = false;
-        for (int tv = 0; tv < tnv; ++tv) {
-            int first = -1, last = -1;
-            for (int tu = 0; tu < tnu_; ++tu)
-                if (tileSlot(layer, tu, tv) != -2) {
-                    if (first < 0) first = tu;
-                    last = tu;
-                }
-            any = any || first >= 0;
-            const int lo = first < 0 ? 0 : first * K, hi = first < 0 ? 0 : std::min(g_.nu, (last + 1) * K);
-            for (int cv = tv * K; cv < std::min(g_.nv, (tv + 1) * K); ++cv) {
-                spanLo_[cv] = lo;
-                spanHi_[cv] = hi;
+        for (int tv = 0; tv < f_.tnv; ++tv) {
+            int first = f_.tnu, last = -1;
+            for (int layer = 0; layer < f_.tna; ++layer) {
+                int lf, ll;
+                f_.rowExtent(layer, tv, lf, ll);
+                if (lf < 0) continue;
+                first = std::min(first, lf);
+                last = std::max(last, ll);
             }
-            for (int tu = std::max(first, 0); first >= 0 && tu <= last; ++tu) gatherTile(layer, tu, tv);
+            PlaneRow& pr = ownRows_[size_t(tv)];
+            pr.first = last < 0 ? 0 : first;
+            pr.width = last < 0 ? 0 : last - first + 1;
+            pr.base = total;
+            total += size_t(pr.width) * K * K * kChunk;
+        }
+        ownP_.assign(total, 0.0f);
+        rows_ = ownRows_.data();
+        P_ = ownP_.data();
+    }
+
+    // Sets the voxel rows' spans of allocated tiles (tile-granular) of one layer.
+    void setSpan(int tv, int first, int last) {
+        const int lo = first < 0 ? 0 : first * K, hi = first < 0 ? 0 : std::min(g_.nu, (last + 1) * K);
+        for (int cv = tv * K; cv < std::min(g_.nv, (tv + 1) * K); ++cv) {
+            spanLo_[cv] = lo;
+            spanHi_[cv] = hi;
+        }
+    }
+
+    // Fills the layer's own planes over the span of allocated tiles of each tile row;
+    // returns whether the layer holds any allocated tile.
+    bool gather(int layer) {
+        bool any = false;
+        for (int tv = 0; tv < f_.tnv; ++tv) {
+            int first, last;
+            f_.rowExtent(layer, tv, first, last);
+            any = any || first >= 0;
+            setSpan(tv, first, last);
+            for (int tu = std::max(first, 0); first >= 0 && tu <= last; ++tu) gatherTile(f_, job_, rows_, P_, layer, tu, tv);
         }
         return any;
     }
 
-    // One tile into the planes; an unallocated tile inside a span reads as empty.
-    void gatherTile(int layer, int tu, int tv) {
-        const std::int32_t slot = tileSlot(layer, tu, tv);
-        const TileWalk w = tileWalk(slot == -2 ? -1 : slot, layer, tu, tv);
-        const float sc[3] = {job_.srcScale.r, job_.srcScale.g, job_.srcScale.b};
-        const float* sigma = m_.sigmaT.data();
-        const float* src = job_.src;
-        const size_t ss = job_.srcStride;
-        for (int s = 0; s < w.nA; ++s)
-            for (int lv = 0; lv < w.nV; ++lv) {
-                float* q = &P_[planeIndex(tv * K + lv, s, tu * K)];
-                if (slot == -2) {
-                    std::fill_n(q, kChunk, 0.0f);
-                    continue;
-                }
-                const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
-                for (int lu = 0; lu < w.nU; ++lu) {
-                    const size_t x = x0 + size_t(lu) * w.sU;
-                    const float sg = sigma[x];
-                    q[lu] = sg;
-                    for (int c = 0; c < 3; ++c) {
-                        q[(1 + c) * kLanes + lu] = src ? sg * sc[c] * src[x * ss + c] : 0.0f;
-                        q[(4 + c) * kLanes + lu] = 0.0f;
-                    }
-                }
-            }
+    // Points at the shared planes of the layer; returns whether it holds allocated tiles.
+    bool useShared(int layer) {
+        rows_ = shared_->rows(layer);
+        P_ = shared_->data();
+        bool any = false;
+        for (int tv = 0; tv < f_.tnv; ++tv) {
+            const PlaneRow& pr = rows_[tv];
+            any = any || pr.width > 0;
+            setSpan(tv, pr.width > 0 ? pr.first : -1, pr.first + pr.width - 1);
+        }
+        return any;
     }
 
     // Adds the layer's deposits to phi (allocated voxels only) and tallies them (float sums
     // per tile, added in double).
     void scatter(int layer, float* phi) {
         const float k = float(g_.aPerp) * depositScale_;
-        const int tnv = (g_.nv + K - 1) / K;
-        for (int tv = 0; tv < tnv; ++tv)
-            for (int tu = 0; tu < tnu_; ++tu) {
-                const std::int32_t slot = tileSlot(layer, tu, tv);
-                if (slot == -2) continue;
-                const TileWalk w = tileWalk(slot, layer, tu, tv);
-                float sca[3] = {0, 0, 0}, src[3] = {0, 0, 0};
-                for (int s = 0; s < w.nA; ++s)
-                    for (int lv = 0; lv < w.nV; ++lv) {
-                        const float* q = &P_[planeIndex(tv * K + lv, s, tu * K)];
-                        const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
-                        for (int lu = 0; lu < w.nU; ++lu) {
-                            float* ph = &phi[(x0 + size_t(lu) * w.sU) * 3];
-                            for (int c = 0; c < 3; ++c) {
-                                const float d = q[(4 + c) * kLanes + lu];
-                                ph[c] += k * d;
-                                sca[c] += q[lu] * d;
-                                src[c] += q[(1 + c) * kLanes + lu];
-                            }
-                        }
-                    }
-                for (int c = 0; c < 3; ++c) {
-                    sca_[c] += sca[c];
-                    injSrc_[c] += src[c];
-                }
-            }
+        for (int tv = 0; tv < f_.tnv; ++tv)
+            for (int tu = 0; tu < f_.tnu; ++tu) scatterTile(f_, rows_, P_, layer, tu, tv, k, phi, sca_, injSrc_);
     }
 
     // One slice: every ray row, every lattice class in it (rows outer, so the plane rows a
@@ -487,11 +578,11 @@ private:
             applyShift(row);
             // lo is tile-aligned; hi rounds up into the padding columns (sigma = 0 there).
             const int chunks = (hi - lo + K - 1) / K;
-            float* plane = &P_[planeIndex(vr, slice_, lo)];
+            float* plane = &P_[planeIndex(rows_, vr, slice_, lo)];
             if (job_.src)
-                segmentChunks<true>(chunks, float(e.len), plane, &L_[row + size_t(lo)], rowStride_ / 3);
+                segmentChunks<true>(chunks, float(e.len), dk_, plane, &L_[row + size_t(lo)], rowStride_ / 3);
             else
-                segmentChunks<false>(chunks, float(e.len), plane, &L_[row + size_t(lo)], rowStride_ / 3);
+                segmentChunks<false>(chunks, float(e.len), dk_, plane, &L_[row + size_t(lo)], rowStride_ / 3);
             segs_ += std::uint64_t(hi - lo);
         }
     }
@@ -499,14 +590,18 @@ private:
     const Medium& m_;
     const Job& job_;
     const Geometry g_;
+    const AxisFrame f_;
     const float depositScale_;
-    int tnu_ = 0, slice_ = 0;
-    std::vector<int> rowFirst_, rowWidth_;  // per tile row: plane tiles (first, count)
-    std::vector<size_t> rowBase_;           // per tile row: offset in P_
+    AxisPlanes* shared_;
+    float dk_ = 1.0f;  // deposit factor in the kernel
+    int slice_ = 0;
+    std::vector<PlaneRow> ownRows_;  // own planes: per tile row, over all layers
+    std::vector<float> ownP_;        // own planes: the current tile layer
+    const PlaneRow* rows_ = nullptr;  // the current layer's plane rows (own or shared)
+    float* P_ = nullptr;
     size_t rowStride_ = 0;
     std::vector<float> L_;  // ray radiance
     std::vector<int> pending_;  // per ray row: u crossings not yet applied
-    std::vector<float> P_;  // the current tile layer
     std::vector<int> spanLo_, spanHi_;  // per voxel row: columns in allocated tiles (tile-granular)
     std::vector<ClassState> stU_, stV_;
     std::vector<double> lamU_[16], lamV_[16];  // this slice's crossings per class (r <= 16)
@@ -525,6 +620,32 @@ void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally,
     if (r < 1 || r > 16) throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(r));
     if (job.srcLinear) throw Error("LPM", "sweepStep takes a voxel-constant source only");
     StepSweep(m, job, r, depositScale).run(phi, tally);
+}
+
+void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
+                    float depositPerWeight) {
+    if (r < 1 || r > 16) throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(r));
+    if (jobs.empty()) return;
+    const Job& first = *jobs[0];
+    for (const Job* j : jobs)
+        if (j->srcLinear || j->axis != first.axis || j->src != first.src || j->srcStride != first.srcStride ||
+            j->srcScale.r != first.srcScale.r || j->srcScale.g != first.srcScale.g || j->srcScale.b != first.srcScale.b)
+            throw Error("LPM", "a sweep batch takes jobs of one sweep axis and one voxel-constant source");
+    AxisPlanes planes(m, first.axis, first);
+    double weights = 0;
+    for (const Job* j : jobs) {
+        StepSweep(m, *j, r, 1.0f, &planes).run(nullptr, tally);
+        weights += j->weight;
+    }
+    double sca[3] = {0, 0, 0}, src[3] = {0, 0, 0};
+    planes.scatter(depositPerWeight, phi, sca, src);
+    const double V = m.voxelVolume();
+    const double alb[3] = {m.albedo.r, m.albedo.g, m.albedo.b};
+    for (int c = 0; c < 3; ++c) {
+        tally.injected[c] += src[c] * V * weights;
+        tally.scattered[c] += alb[c] * sca[c];
+        tally.absorbed[c] += (1 - alb[c]) * sca[c];
+    }
 }
 
 }  // namespace lpm
