@@ -61,9 +61,10 @@ inline float expNegInline(float x) {
 }
 
 
-// Layout of a plane chunk: the 8 voxels of one tile along one voxel row, as 7 arrays of 8
-// floats (sigma, source q0..q2, deposit d0..d2): 56 floats, chunks of a row contiguous.
-constexpr int kLanes = 8, kChunk = 7 * kLanes;
+// Layout of a plane chunk: the 8 voxels of one tile along one voxel row, as 8 arrays of 8
+// floats (sigma, source q0..q2, deposit d0..d2, 1/sigma or 0 where sigma = 0): 64 floats
+// (one 256-byte block), chunks of a row contiguous.
+constexpr int kLanes = 8, kChunk = 8 * kLanes;
 // Layout of a ray row: 3 channels of nuPad floats each, contiguous.
 
 // One segment of length len for `chunks` x 8 rays (ray row L: channels nuPad apart) over
@@ -81,12 +82,13 @@ LPM_SIMD_CLONES void segmentChunks(int chunks, float len, float dk, float* __res
         const float* __restrict sig = plane;
         const float* __restrict q = plane + kLanes;
         float* __restrict d = plane + 4 * kLanes;
+        const float* __restrict invSig = plane + 7 * kLanes;
         for (int i = 0; i < kLanes; ++i) {
             const float tau = sig[i] * len;
             const float T = expNegInline(tau);
-            const float inv = 1.0f / (tau > 1e-30f ? tau : 1e-30f);
-            const float e1l = len * (1.0f - T) * inv;
-            const float e2l = len * (len - e1l) * inv;
+            // l (1 - T) / tau and l (l - e1) / tau without a division (used for tau >= 1/4 only).
+            const float e1l = (1.0f - T) * invSig[i];
+            const float e2l = (len - e1l) * invSig[i];
             // Series of (1 - e^-t)/t and (t - 1 + e^-t)/t^2, truncation < 2e-9 below 1/4.
             const float e1s =
                 len * (1.0f - tau * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120 - tau * (1.0f / 720))))));
@@ -294,6 +296,7 @@ void gatherTile(const AxisFrame& f, const Job& job, const PlaneRow* rows, float*
                 const size_t x = x0 + size_t(lu) * w.sU;
                 const float sg = sigma[x];
                 q[lu] = sg;
+                q[7 * kLanes + lu] = sg > 0 ? 1.0f / sg : 0.0f;
                 if (src)
                     for (int c = 0; c < 3; ++c) q[(1 + c) * kLanes + lu] = sg * sc[c] * src[x * ss + c];
             }
