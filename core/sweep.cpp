@@ -515,11 +515,36 @@ private:
         for (int jv = 0; jv < r; ++jv)
             for (int ju = 0; ju < r; ++ju) mergeEvents(lamU_[ju], lamV_[jv], g_.sliceLen, ev_[size_t(jv * r + ju)]);
         slice_ = ia % K;
+        if (!any) {
+            for (int cls = 0; cls < r * r; ++cls) crossEmptySlice(cls, SV_[cls / r], ev_[size_t(cls)]);
+            return;
+        }
         for (int cellV = 0; cellV < g_.nv; ++cellV)
             for (int cls = 0; cls < r * r; ++cls) {
                 const size_t row = (size_t(cellV) * r * r + size_t(cls)) * rowStride_;
                 processRow(row, cellV, SV_[cls / r], ev_[size_t(cls)], any);
             }
+    }
+
+    // A slice of an empty tile layer: rays cross it unchanged, so only processRow's
+    // bookkeeping is left, done for all rows of a class at once, in event order: a u
+    // crossing adds a pending column shift to every row; a v crossing moves every row one
+    // voxel row on, and the one row at the block's edge leaves it (its rays re-enter with
+    // the boundary radiance). SV: the class's row shift at slice start.
+    void crossEmptySlice(int cls, int SV, const std::vector<Event>& ev) {
+        const int nv = g_.nv, rr = g_.r * g_.r;
+        const int edge = g_.sv > 0 ? nv - 1 : 0;
+        int shift = SV;  // row cellV lies in voxel row (cellV + shift) mod nv
+        for (const Event& e : ev) {
+            if (e.kind == 1) {
+                for (int cellV = 0; cellV < nv; ++cellV) ++pending_[size_t(cellV) * rr + size_t(cls)];
+            } else if (e.kind == 2) {
+                const size_t row = (size_t(wrap(edge - shift, nv)) * rr + size_t(cls)) * rowStride_;
+                applyShift(row);
+                for (int i = 0; i < g_.nu; ++i) resetRay(row, i);
+                shift = wrap(shift + g_.sv, nv);
+            }
+        }
     }
 
     // Ray `lane` of ray row `row` leaves the block: tallied as escaped, replaced by the boundary.
