@@ -22,6 +22,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
 
 #include "core/sweep.h"
 
@@ -387,14 +388,16 @@ public:
         : m_(m), job_(job), g_(m, job, r), f_(m, job.axis), depositScale_(depositScale), shared_(shared) {
         const size_t nuPad = size_t(f_.tnu) * K;
         rowStride_ = 3 * nuPad;
-        L_.assign(size_t(r) * r * g_.nv * rowStride_, 0.0f);
+        rows_count_ = size_t(r) * r * g_.nv;
+        // Uninitialised: a ray row is written only when it first meets allocated voxels
+        // (pristine_), so the rays of empty space cost neither memory traffic nor pages.
+        L_.reset(new float[rows_count_ * rowStride_]);
+        pristine_.assign(rows_count_, 1);
         pending_.assign(size_t(r) * r * g_.nv, 0);
         for (int c = 0; c < 3; ++c) {
             bnd_[c] = job.boundary[c];
             inj_[c] = double(bnd_[c]) * double(size_t(r) * r * g_.nu * g_.nv);  // padding lanes excluded
         }
-        for (size_t row = 0; row < L_.size(); row += rowStride_)
-            for (int c = 0; c < 3; ++c) std::fill_n(&L_[row + c * nuPad], nuPad, bnd_[c]);
         dk_ = shared ? float(g_.aPerp * job.weight) : 1.0f;
         if (!shared) allocatePlanes();
         spanLo_.assign(size_t(g_.nv), 0);
@@ -417,10 +420,14 @@ public:
             if (any && !shared_) scatter(layer, phi);
         }
         const size_t nuPad = rowStride_ / 3;
-        for (size_t row = 0; row < L_.size(); row += rowStride_) applyShift(row);
-        for (size_t row = 0; row < L_.size(); row += rowStride_)
-            for (int c = 0; c < 3; ++c)
-                for (int i = 0; i < g_.nu; ++i) esc_[c] += L_[row + c * nuPad + size_t(i)];
+        for (size_t row = 0; row < rows_count_ * rowStride_; row += rowStride_) {
+            applyShift(row);
+            if (pristine_[row / rowStride_])
+                for (int c = 0; c < 3; ++c) esc_[c] += double(bnd_[c]) * g_.nu;
+            else
+                for (int c = 0; c < 3; ++c)
+                    for (int i = 0; i < g_.nu; ++i) esc_[c] += L_[row + c * nuPad + size_t(i)];
+        }
         const double k = g_.aPerp * job_.weight, V = m_.voxelVolume();
         const double alb[3] = {m_.albedo.r, m_.albedo.g, m_.albedo.b};
         for (int c = 0; c < 3; ++c) {
@@ -540,11 +547,35 @@ private:
                 for (int cellV = 0; cellV < nv; ++cellV) ++pending_[size_t(cellV) * rr + size_t(cls)];
             } else if (e.kind == 2) {
                 const size_t row = (size_t(wrap(edge - shift, nv)) * rr + size_t(cls)) * rowStride_;
-                applyShift(row);
-                for (int i = 0; i < g_.nu; ++i) resetRay(row, i);
+                leaveRow(row);
                 shift = wrap(shift + g_.sv, nv);
             }
         }
+    }
+
+    // A pristine ray row (every ray holding the boundary radiance, never written) gets its
+    // values before it meets allocated voxels.
+    void materialize(size_t row) {
+        std::uint8_t& p = pristine_[row / rowStride_];
+        if (!p) return;
+        const size_t nuPad = rowStride_ / 3;
+        for (int c = 0; c < 3; ++c) std::fill_n(&L_[row + c * nuPad], nuPad, bnd_[c]);
+        p = 0;
+    }
+
+    // The whole row leaves the block through a v face: every ray is tallied as escaped and
+    // re-enters with the boundary radiance, which leaves the row pristine.
+    void leaveRow(size_t row) {
+        applyShift(row);
+        std::uint8_t& p = pristine_[row / rowStride_];
+        const size_t nuPad = rowStride_ / 3;
+        for (int c = 0; c < 3; ++c) {
+            if (p) esc_[c] += double(bnd_[c]) * g_.nu;
+            else
+                for (int i = 0; i < g_.nu; ++i) esc_[c] += L_[row + c * nuPad + size_t(i)];
+            inj_[c] += double(bnd_[c]) * g_.nu;
+        }
+        p = 1;
     }
 
     // Ray `lane` of ray row `row` leaves the block: tallied as escaped, replaced by the boundary.
@@ -564,6 +595,13 @@ private:
     // rows (nothing else changes its rays there), so empty space costs no data movement.
     void applyShift(size_t row) {
         int& k = pending_[row / rowStride_];
+        if (k > 0 && pristine_[row / rowStride_]) {  // every ray holds bnd: k leave, k re-enter
+            for (int c = 0; c < 3; ++c) {
+                esc_[c] += double(bnd_[c]) * k;
+                inj_[c] += double(bnd_[c]) * k;
+            }
+            k = 0;
+        }
         const int nu = g_.nu;
         const size_t nuPad = rowStride_ / 3;
         while (k > 0) {
@@ -583,7 +621,7 @@ private:
     // Applies one class's events in slice order to one ray row; SV: the class's row shift
     // at slice start, in [0, nv).
     void processRow(size_t row, int cellV, int SV, const std::vector<Event>& ev, bool any) {
-        const int nu = g_.nu, nv = g_.nv;
+        const int nv = g_.nv;
         int vr = cellV + SV;  // the voxel row the rays are in
         if (vr >= nv) vr -= nv;
         for (const Event& e : ev) {
@@ -592,10 +630,7 @@ private:
                 continue;
             }
             if (e.kind == 2) {  // the whole row moves to the next voxel row, or leaves the block
-                if (vr == (g_.sv > 0 ? nv - 1 : 0)) {
-                    applyShift(row);
-                    for (int i = 0; i < nu; ++i) resetRay(row, i);
-                }
+                if (vr == (g_.sv > 0 ? nv - 1 : 0)) leaveRow(row);
                 vr += g_.sv;
                 vr = vr < 0 ? nv - 1 : (vr >= nv ? 0 : vr);
                 continue;
@@ -604,6 +639,7 @@ private:
             const int lo = spanLo_[vr], hi = spanHi_[vr];
             if (lo >= hi) continue;  // the voxel row lies in empty tiles
             applyShift(row);
+            materialize(row);
             // lo is tile-aligned; hi rounds up into the padding columns (sigma = 0 there).
             const int chunks = (hi - lo + K - 1) / K;
             float* plane = &P_[planeIndex(rows_, vr, slice_, lo)];
@@ -628,7 +664,9 @@ private:
     const PlaneRow* rows_ = nullptr;  // the current layer's plane rows (own or shared)
     float* P_ = nullptr;
     size_t rowStride_ = 0;
-    std::vector<float> L_;  // ray radiance
+    size_t rows_count_ = 0;            // ray rows
+    std::unique_ptr<float[]> L_;       // ray radiance, valid in rows that are not pristine
+    std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (L_ not written)
     std::vector<int> pending_;  // per ray row: u crossings not yet applied
     std::vector<int> spanLo_, spanHi_;  // per voxel row: columns in allocated tiles (tile-granular)
     std::vector<ClassState> stU_, stV_;
