@@ -51,6 +51,7 @@ std::string canonicalSettings(const BakeOptions& o) {
     num("max_orders", s.maxOrders);
     num("krylov", s.krylov);
     num("krylov_after", s.krylovAfter);
+    num("coarse_krylov_after", s.coarseKrylovAfter);
     num("krylov_restart", s.krylovRestart);
     num("source", s.linearSource);
     num("linear_source_above", s.linearSourceAbove);

@@ -192,6 +192,9 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
     if (s.multiresAfter < 1)
         throw Error("LPM", "full-resolution passes before the coarse grid must be >= 1, got " + std::to_string(s.multiresAfter));
     if (s.maxOrders < 1) throw Error("LPM", "max orders must be at least 1, got " + std::to_string(s.maxOrders));
+    if (s.krylovAfter < 0 || s.coarseKrylovAfter < 0)
+        throw Error("LPM", "Krylov switch points must be >= 0, got " + std::to_string(s.krylovAfter) + " and " +
+                               std::to_string(s.coarseKrylovAfter));
     for (const Sun& sun : lights.suns) {
         if (!(length(sun.toSun) > 0)) throw Error("LPM", "sun direction must be non-zero");
         for (int c = 0; c < 3; ++c)
@@ -593,10 +596,8 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         cs.binsPerFace = binsPerFace;  // the restricted source is in these bins
         cs.raysPerVoxel = cs.raysHigherOrders = r;
         // GMRES earlier on the coarse grid: its passes are cheap next to the fine ones and its
-        // Krylov vectors 1/8 the size (plume-1M: 42 -> 18 coarse passes, band-0 error against
-        // MC unchanged within its noise; docs/performance.md).
-        constexpr int kCoarseKrylovAfter = 8;
-        cs.krylovAfter = std::min(s.krylovAfter, kCoarseKrylovAfter);
+        // Krylov vectors 1/8 the size (docs/performance.md).
+        cs.krylovAfter = std::min(s.krylovAfter, s.coarseKrylovAfter);
         const int n = s.directionsPerFace, half = n / 2;
         cs.directionsPerFace =
             s.multiresDirections > 0 ? s.multiresDirections

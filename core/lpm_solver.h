@@ -30,6 +30,7 @@ struct LpmSettings {
     int maxOrders = 1000;       ///< hard cap on propagation passes
     bool krylov = true;         ///< allow GMRES acceleration when source iteration would be slow
     int krylovAfter = 25;       ///< switch when plain iteration would need more than this many passes
+    int coarseKrylovAfter = 8;  ///< the same on the multi-resolution coarse grid (its passes are cheap)
     int krylovRestart = 40;     ///< GMRES restart length (capped by a 2 GiB budget for Krylov vectors)
     int linearSource = -1;      ///< -1 auto (on when a voxel is optically thicker than
                                 ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
