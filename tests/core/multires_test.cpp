@@ -126,3 +126,40 @@ TEST(Multires, AutoKeepsSmallBlocksAtFullResolution) {
     EXPECT_TRUE(saidDecision(r, "full resolution for every order"));
     for (const PassStats& p : r.passes) EXPECT_FALSE(p.coarse);
 }
+
+// Albedo 0.99: the coarse grid's source iteration converges slowly, so it switches to GMRES
+// after a few passes (coarseKrylovAfter); the result stays within the solver tolerance of
+// plain coarse iteration (the expensive path) in fewer coarse passes.
+TEST(Multires, CoarseGridSwitchesToGmresEarly) {
+    Case cs{"cloud g0 a0.99", VolumeKind::Cloud, 0.0, 0.99, 16.0};
+    Scene sc = makeScene(cs, 32);
+    sc.lights.env = &sc.sky;
+    LpmSettings early, plain;
+    early.multires = plain.multires = 1;
+    plain.coarseKrylovAfter = 1000;
+    const LpmResult re = solveLpm(sc.medium, sc.lights, early);
+    const LpmResult rp = solveLpm(sc.medium, sc.lights, plain);
+    EXPECT_TRUE(saidDecision(re, "coarse grid: Krylov (GMRES) acceleration"));
+    EXPECT_FALSE(saidDecision(rp, "coarse grid: Krylov (GMRES) acceleration"));
+    EXPECT_TRUE(re.converged);
+    EXPECT_NEAR(re.absorbed + re.escaped + re.unshot, re.injected, 2e-3 * re.injected);
+    auto coarsePasses = [](const LpmResult& r) {
+        int n = 0;
+        for (const PassStats& p : r.passes) n += p.coarse;
+        return n;
+    };
+    EXPECT_LT(coarsePasses(re), coarsePasses(rp));
+    double num = 0, den = 0;
+    for (size_t v = 0; v < sc.medium.voxelCount(); ++v) {
+        if (!(sc.medium.sigmaT[v] > 0)) continue;
+        for (int c = 0; c < 3; ++c) {
+            const double a = re.coeff(v, 0)[c], b = rp.coeff(v, 0)[c];
+            num += (a - b) * (a - b);
+            den += b * b;
+        }
+    }
+    const double rel = std::sqrt(num / den);
+    std::printf("coarse passes: %d with early GMRES, %d plain; band-0 relative RMS difference %.2e\n",
+                coarsePasses(re), coarsePasses(rp), rel);
+    EXPECT_LT(rel, early.tolerance);  // measured 2.4e-4
+}
