@@ -570,7 +570,7 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
     }
     // Rays of the passes after the first. Auto: one per voxel when the two-grid solve runs:
     // there the fine passes after single scattering propagate sums of smooth higher orders
-    // (band-0 error against MC unchanged on plume-1M, docs/performance.md).
+    // (band-0 error against MC unchanged on plume-1M, docs/multires.md).
     const int raysHigher = s.raysHigherOrders > 0 ? s.raysHigherOrders : (coarseFrom > 0 ? 1 : s.raysPerVoxel);
     if (raysHigher != r) {
         r = raysHigher;
@@ -596,7 +596,7 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
         cs.binsPerFace = binsPerFace;  // the restricted source is in these bins
         cs.raysPerVoxel = cs.raysHigherOrders = r;
         // GMRES earlier on the coarse grid: its passes are cheap next to the fine ones and its
-        // Krylov vectors 1/8 the size (docs/performance.md).
+        // Krylov vectors 1/8 the size (docs/multires.md).
         cs.krylovAfter = std::min(s.krylovAfter, s.coarseKrylovAfter);
         const int n = s.directionsPerFace, half = n / 2;
         cs.directionsPerFace =
