@@ -5,7 +5,7 @@ set -euo pipefail
 PKGS=(build-essential cmake ccache pkg-config
       libopenvdb-dev libboost-iostreams-dev libtbb-dev
       libopenimageio-dev openimageio-tools libopencolorio-dev
-      libcli11-dev libgtest-dev
+      libcli11-dev libgtest-dev libbenchmark-dev   # Google Benchmark: scripts/bench/sweep_kernel.cpp
       slurm-wlm munge procps)   # test only: tests/farm/slurm_test.sh runs a one-node Slurm cluster
 missing=()
 for p in "${PKGS[@]}"; do
