@@ -1,6 +1,7 @@
 // Sweep kernel throughput (Google Benchmark): ray-segment updates per second of one
 // sweep, one thread, on a dense random block, by rays per voxel and with or without a
-// volume source; and a batch of 16 directions sharing their planes (sweepStepBatch).
+// volume source; and a batch of 16 directions sharing their planes (sweepStepBatch), on
+// a block of 32^3 (its planes in L2) and 96^3 (in L3).
 //   lpm_bench_kernel [--benchmark_filter=...]
 // The counter "segments/s" is the figure the roofline estimate in docs/performance.md is
 // compared with.
@@ -61,7 +62,7 @@ BENCHMARK(BM_Sweep)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillisecond
 
 void BM_SweepBatch16(benchmark::State& state) {
     const int r = int(state.range(0));
-    const Medium m = denseBlock(96);
+    const Medium m = denseBlock(int(state.range(1)));
     const std::vector<float> src(m.voxelCount() * 3, 1.0f);
     std::vector<Job> jobs;
     for (int i = 0; i < 16; ++i) jobs.push_back(obliqueJob(i, &src));
@@ -77,7 +78,7 @@ void BM_SweepBatch16(benchmark::State& state) {
     }
     state.counters["segments/s"] = benchmark::Counter(double(segments), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_SweepBatch16)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SweepBatch16)->ArgsProduct({{1, 2}, {32, 96}})->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
