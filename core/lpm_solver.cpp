@@ -139,6 +139,63 @@ static std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>&
     return batches;
 }
 
+/// Sizes of the per-direction fold: unshot bins, source moments, SH coefficients.
+struct FoldShape {
+    int bins, moments, coeffs;
+    bool depositSh;
+};
+
+/// Folds the deposits phi[j] ([voxel][moment][rgb]) of jobs[0..n) into the SH result
+/// ([voxel][coeff][rgb]) and the next unshot source `out` ([voxel][bin][moment][rgb]).
+/// Voxels outer, jobs inner (in job order, so the sums do not depend on the thread count):
+/// a voxel's unshot row stays in L1 across the jobs instead of streaming through memory
+/// once per job.
+static void foldDeposits(const FoldShape& f, const Job* jobs, size_t n, const std::vector<std::vector<float>>& phi,
+                         const std::vector<std::uint8_t>& slopeVoxel, std::vector<float>& sh, std::vector<float>& out) {
+    const int nb = f.bins, M = f.moments, nc = f.coeffs;
+    const size_t N = phi.empty() ? 0 : phi[0].size() / (3 * size_t(M)), perVoxel = size_t(nb) * M * 3;
+    // Per job, each bin coefficient repeated for the 3 channels (vectorises as bins x rgb).
+    std::vector<float> coef(n * nb * 3);
+    for (size_t j = 0; j < n; ++j)
+        for (int d = 0; d < nb; ++d)
+            for (int c = 0; c < 3; ++c) coef[(j * nb + d) * 3 + c] = float(jobs[j].binCoef[d]);
+    parallelForChunks(N, 1024, [&](size_t vb, size_t ve) {
+        for (size_t x = vb; x < ve; ++x) {
+            float* un = &out[x * perVoxel];
+            const int mx = slopeVoxel.empty() || slopeVoxel[x] ? M : 1;
+            for (size_t j = 0; j < n; ++j) {
+                const float* p = &phi[j][x * 3 * M];  // [moment][rgb]; moment 0 is the mean
+                if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
+                if (f.depositSh) {
+                    float* o = &sh[x * nc * 3];
+                    for (int k = 0; k < nc; ++k) {
+                        const double a = jobs[j].shCoef[k];
+                        if (a == 0) continue;
+                        for (int c = 0; c < 3; ++c) o[k * 3 + c] += float(a * p[c]);
+                    }
+                }
+                const float* cj = &coef[j * nb * 3];
+                if (M == 1) {
+                    float rep[24];  // p repeated: 24 = 3 channels x 8 lanes
+                    for (int k = 0; k < 24; ++k) rep[k] = p[k % 3];
+                    int i = 0;
+                    for (; i + 24 <= nb * 3; i += 24)
+                        for (int k = 0; k < 24; ++k) un[i + k] += cj[i + k] * rep[k];
+                    for (; i < nb * 3; ++i) un[i] += cj[i] * p[i % 3];
+                    continue;
+                }
+                for (int d = 0; d < nb; ++d) {
+                    const float bc = cj[d * 3];
+                    for (int c = 0; c < 3; ++c) un[d * M * 3 + c] += bc * p[c];
+                    // Least-squares slope from the first moment: Int xi_k^2 = 1/12.
+                    for (int k = 1; k < mx; ++k)
+                        for (int c = 0; c < 3; ++c) un[(d * M + k) * 3 + c] += 12.0f * bc * p[k * 3 + c];
+                }
+            }
+        }
+    });
+}
+
 static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSettings& s, double gOut,
                            const std::vector<float>* initialSource = nullptr) {
     const auto t0 = Clock::now();
@@ -375,33 +432,8 @@ static LpmResult solveImpl(const Medium& m, const Lights& lights, const LpmSetti
                 }
             });
             for (size_t j = 0; j < nbatch; ++j) total.add(tallies[j]);
-            parallelForChunks(N, 4096, [&](size_t vb, size_t ve) {
-                for (size_t j = 0; j < nbatch; ++j) {
-                    const Job& job = jobs[b0 + j];
-                    const float* ph = phi[j].data();
-                    for (size_t x = vb; x < ve; ++x) {
-                        const float* p = &ph[x * 3 * M];  // [moment][rgb]; moment 0 is the mean
-                        if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
-                        if (depositSh) {
-                            float* o = &res.sh[x * nc * 3];
-                            for (int k = 0; k < nc; ++k) {
-                                const double a = job.shCoef[k];
-                                if (a == 0) continue;
-                                for (int c = 0; c < 3; ++c) o[k * 3 + c] += float(a * p[c]);
-                            }
-                        }
-                        float* un = &out[x * perVoxel];  // [voxel][bin][moment][rgb]: contiguous per voxel
-                        const int mx = slopeVoxel.empty() || slopeVoxel[x] ? M : 1;
-                        for (int d = 0; d < nb; ++d) {
-                            const float bc = float(job.binCoef[d]);
-                            for (int c = 0; c < 3; ++c) un[d * M * 3 + c] += bc * p[c];
-                            // Least-squares slope from the first moment: Int xi_k^2 = 1/12.
-                            for (int k = 1; k < mx; ++k)
-                                for (int c = 0; c < 3; ++c) un[(d * M + k) * 3 + c] += 12.0f * bc * p[k * 3 + c];
-                        }
-                    }
-                }
-            });
+            FoldShape shape{nb, M, nc, depositSh};
+            foldDeposits(shape, &jobs[b0], nbatch, phi, slopeVoxel, res.sh, out);
         }
     };
 
