@@ -145,6 +145,27 @@ struct FoldShape {
     bool depositSh;
 };
 
+/// An RGB triple repeated 8 times: 24 floats = 3 channels x 8 lanes.
+struct RgbRepeat {
+    float v[24];
+    explicit RgbRepeat(const float* p) {
+        for (int k = 0; k < 24; k += 3) {
+            v[k] = p[0];
+            v[k + 1] = p[1];
+            v[k + 2] = p[2];
+        }
+    }
+};
+
+/// dst[i] += coef[i] * p[i % 3] for i < 3 count: coefficients repeated per channel times an
+/// RGB triple, written so that it vectorises.
+static inline void addTimesRgb(float* __restrict dst, const float* __restrict coef, const RgbRepeat& p, int count) {
+    int i = 0;
+    for (; i + 24 <= 3 * count; i += 24)
+        for (int k = 0; k < 24; ++k) dst[i + k] += coef[i + k] * p.v[k];
+    for (; i < 3 * count; ++i) dst[i] += coef[i] * p.v[i % 3];
+}
+
 /// Folds the deposits phi[j] ([voxel][moment][rgb]) of jobs[0..n) into the SH result
 /// ([voxel][coeff][rgb]) and the next unshot source `out` ([voxel][bin][moment][rgb]).
 /// Voxels outer, jobs inner (in job order, so the sums do not depend on the thread count):
@@ -154,11 +175,13 @@ static void foldDeposits(const FoldShape& f, const Job* jobs, size_t n, const st
                          const std::vector<std::uint8_t>& slopeVoxel, std::vector<float>& sh, std::vector<float>& out) {
     const int nb = f.bins, M = f.moments, nc = f.coeffs;
     const size_t N = phi.empty() ? 0 : phi[0].size() / (3 * size_t(M)), perVoxel = size_t(nb) * M * 3;
-    // Per job, each bin coefficient repeated for the 3 channels (vectorises as bins x rgb).
-    std::vector<float> coef(n * nb * 3);
+    // Per job, each bin and SH coefficient repeated for the 3 channels.
+    std::vector<float> binC(n * nb * 3), shC(n * nc * 3);
     for (size_t j = 0; j < n; ++j)
-        for (int d = 0; d < nb; ++d)
-            for (int c = 0; c < 3; ++c) coef[(j * nb + d) * 3 + c] = float(jobs[j].binCoef[d]);
+        for (int c = 0; c < 3; ++c) {
+            for (int d = 0; d < nb; ++d) binC[(j * nb + d) * 3 + c] = float(jobs[j].binCoef[d]);
+            for (int k = 0; k < nc; ++k) shC[(j * nc + k) * 3 + c] = float(jobs[j].shCoef[k]);
+        }
     parallelForChunks(N, 1024, [&](size_t vb, size_t ve) {
         for (size_t x = vb; x < ve; ++x) {
             float* un = &out[x * perVoxel];
@@ -166,22 +189,11 @@ static void foldDeposits(const FoldShape& f, const Job* jobs, size_t n, const st
             for (size_t j = 0; j < n; ++j) {
                 const float* p = &phi[j][x * 3 * M];  // [moment][rgb]; moment 0 is the mean
                 if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
-                if (f.depositSh) {
-                    float* o = &sh[x * nc * 3];
-                    for (int k = 0; k < nc; ++k) {
-                        const double a = jobs[j].shCoef[k];
-                        if (a == 0) continue;
-                        for (int c = 0; c < 3; ++c) o[k * 3 + c] += float(a * p[c]);
-                    }
-                }
-                const float* cj = &coef[j * nb * 3];
+                const RgbRepeat rep(p);
+                if (f.depositSh) addTimesRgb(&sh[x * nc * 3], &shC[j * nc * 3], rep, nc);
+                const float* cj = &binC[j * nb * 3];
                 if (M == 1) {
-                    float rep[24];  // p repeated: 24 = 3 channels x 8 lanes
-                    for (int k = 0; k < 24; ++k) rep[k] = p[k % 3];
-                    int i = 0;
-                    for (; i + 24 <= nb * 3; i += 24)
-                        for (int k = 0; k < 24; ++k) un[i + k] += cj[i + k] * rep[k];
-                    for (; i < nb * 3; ++i) un[i] += cj[i] * p[i % 3];
+                    addTimesRgb(un, cj, rep, nb);
                     continue;
                 }
                 for (int d = 0; d < nb; ++d) {
