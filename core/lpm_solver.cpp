@@ -116,8 +116,8 @@ void sweepSunTerms(const Medium& m, const std::vector<Sun>& suns, size_t explici
     }
 }
 
-/// The jobs grouped into sweep batches (sweepStepBatch): one per sweep axis and source, in
-/// order of first appearance, each dealt alternately into `split` batches in job order. The
+/// The jobs grouped into sweep batches (sweepStepBatch): per sweep axis and source (in order
+/// of first appearance), the jobs dealt alternately into `split` batches in job order. The
 /// grouping depends on the jobs only, never on the thread count.
 static std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>& jobs, int split) {
     auto sameKey = [](const Job& a, const Job& b) {
@@ -130,12 +130,16 @@ static std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>&
         if (it == keys.end()) keys.push_back({&j});
         else it->push_back(&j);
     }
+    // Batch s of every key before batch s + 1 of any: the halves of the list that two
+    // threads take first then hold one batch of each axis (the axes' costs differ).
     std::vector<std::vector<const Job*>> batches;
-    for (const auto& k : keys) {
-        const size_t first = batches.size(), n = std::min(k.size(), size_t(split));
-        batches.resize(first + n);
-        for (size_t i = 0; i < k.size(); ++i) batches[first + i % n].push_back(k[i]);
-    }
+    for (int part = 0; part < split; ++part)
+        for (const auto& k : keys) {
+            const size_t n = std::min(k.size(), size_t(split));
+            if (size_t(part) >= n) continue;
+            batches.emplace_back();
+            for (size_t i = size_t(part); i < k.size(); i += n) batches.back().push_back(k[i]);
+        }
     return batches;
 }
 
