@@ -19,6 +19,7 @@
 // Tallies: scattered/absorbed = albedo or (1 - albedo) times sum_voxels sigma Int L ds,
 // injected source = sum_voxels Q V / A_perp (the lattice covers each voxel exactly).
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -333,60 +334,87 @@ void scatterTile(const AxisFrame& f, const PlaneRow* rows, const float* P, int l
     }
 }
 
-// The planes of one sweep axis for every tile layer, each tile row covering the span of
-// its allocated tiles in that layer: built once for a batch of jobs that share the axis
-// and the source (sweepStepBatch), their deposits accumulating in place.
-class AxisPlanes {
+// The planes of one tile layer for a sweep axis: per tile row tv the chunks of the tiles
+// between the first and the last allocated one over all layers (so a sparse volume in a
+// large box costs no plane memory for its empty space), filled one layer at a time with
+// sigma, 1/sigma and the source and zeroed deposits, and scattered back after the layer.
+// One sweep owns one; a batch of sweeps of the same axis, sign and source shares one, each
+// sweep adding its deposits times its weight (sweepStepBatch).
+class LayerPlanes {
 public:
-    AxisPlanes(const Medium& m, int axis, const Job& srcJob) : f_(m, axis) {
-        rows_.resize(size_t(f_.tna) * f_.tnv);
+    static constexpr int K = Medium::kTile;
+
+    LayerPlanes(const Medium& m, int axis) : f_(m, axis) {
+        rows_.assign(size_t(f_.tnv), PlaneRow{});
         size_t total = 0;
-        for (int layer = 0; layer < f_.tna; ++layer)
-            for (int tv = 0; tv < f_.tnv; ++tv) {
-                int first, last;
-                f_.rowExtent(layer, tv, first, last);
-                PlaneRow& pr = rows_[size_t(layer) * f_.tnv + tv];
-                pr.first = first < 0 ? 0 : first;
-                pr.width = first < 0 ? 0 : last - first + 1;
-                pr.base = total;
-                total += size_t(pr.width) * Medium::kTileVoxels / Medium::kTile * kChunk;
+        for (int tv = 0; tv < f_.tnv; ++tv) {
+            int first = f_.tnu, last = -1;
+            for (int layer = 0; layer < f_.tna; ++layer) {
+                int lf, ll;
+                f_.rowExtent(layer, tv, lf, ll);
+                if (lf < 0) continue;
+                first = std::min(first, lf);
+                last = std::max(last, ll);
             }
+            PlaneRow& pr = rows_[size_t(tv)];
+            pr.first = last < 0 ? 0 : first;
+            pr.width = last < 0 ? 0 : last - first + 1;
+            pr.base = total;
+            total += size_t(pr.width) * K * K * kChunk;
+        }
         P_.assign(total, 0.0f);
-        for (int layer = 0; layer < f_.tna; ++layer)
-            for (int tv = 0; tv < f_.tnv; ++tv) {
-                const PlaneRow& pr = rows_[size_t(layer) * f_.tnv + tv];
-                for (int tu = pr.first; tu < pr.first + pr.width; ++tu) gatherTile(f_, srcJob, rows(layer), P_.data(), layer, tu, tv);
-            }
+        spanLo_.assign(size_t(f_.nv), 0);
+        spanHi_.assign(size_t(f_.nv), 0);
     }
-    const PlaneRow* rows(int layer) const { return &rows_[size_t(layer) * f_.tnv]; }
+
+    // Fills the layer's planes over the span of allocated tiles of each tile row and sets
+    // the voxel rows' spans (tile-granular); returns whether the layer holds any allocated tile.
+    bool gather(int layer, const Job& srcJob) {
+        bool any = false;
+        for (int tv = 0; tv < f_.tnv; ++tv) {
+            int first, last;
+            f_.rowExtent(layer, tv, first, last);
+            any = any || first >= 0;
+            const int lo = first < 0 ? 0 : first * K, hi = first < 0 ? 0 : std::min(f_.nu, (last + 1) * K);
+            for (int cv = tv * K; cv < std::min(f_.nv, (tv + 1) * K); ++cv) {
+                spanLo_[cv] = lo;
+                spanHi_[cv] = hi;
+            }
+            for (int tu = std::max(first, 0); first >= 0 && tu <= last; ++tu)
+                gatherTile(f_, srcJob, rows_.data(), P_.data(), layer, tu, tv);
+        }
+        return any;
+    }
+
+    // phi += k * the layer's deposits (allocated voxels only); sums sigma d and q.
+    void scatter(int layer, float k, float* phi, double sca[3], double src[3]) const {
+        for (int tv = 0; tv < f_.tnv; ++tv)
+            for (int tu = 0; tu < f_.tnu; ++tu) scatterTile(f_, rows_.data(), P_.data(), layer, tu, tv, k, phi, sca, src);
+    }
+
+    const PlaneRow* rows() const { return rows_.data(); }
     float* data() { return P_.data(); }
-    // phi += k * the accumulated deposits; sums sigma d and the source q over the block.
-    void scatter(float k, float* phi, double sca[3], double src[3]) const {
-        for (int layer = 0; layer < f_.tna; ++layer)
-            for (int tv = 0; tv < f_.tnv; ++tv) {
-                const PlaneRow& pr = rows(layer)[tv];
-                for (int tu = pr.first; tu < pr.first + pr.width; ++tu)
-                    scatterTile(f_, rows(layer), P_.data(), layer, tu, tv, k, phi, sca, src);
-            }
-    }
+    const int* spanLo() const { return spanLo_.data(); }
+    const int* spanHi() const { return spanHi_.data(); }
 
 private:
     AxisFrame f_;
-    std::vector<PlaneRow> rows_;  // [layer][tv]
-    std::vector<float> P_;
+    std::vector<PlaneRow> rows_;  // per tile row, over all layers
+    std::vector<float> P_;        // the current tile layer
+    std::vector<int> spanLo_, spanHi_;  // per voxel row: columns in allocated tiles of this layer
 };
 
-// The state of one sweep: rays, the planes of the current tile layer and the tallies. With
-// its own planes the medium is read and the deposits written one 8^3 tile at a time, in
-// storage order; with shared AxisPlanes the deposits stay there, times the job's weight.
-// Rays: row (cell v, class) at (cellV r^2 + class) 3 nuPad, lane = column (a u crossing
-// shifts the row), columns >= nu are padding.
+// The state of one sweep: rays, the planes of the current tile layer (its own, or a
+// batch's) and the tallies. Rays: row (cell v, class) at (cellV r^2 + class) 3 nuPad,
+// lane = column (a u crossing shifts the row), columns >= nu are padding.
 class StepSweep {
 public:
     static constexpr int K = Medium::kTile;
 
-    StepSweep(const Medium& m, const Job& job, int r, float depositScale, AxisPlanes* shared = nullptr)
-        : m_(m), job_(job), g_(m, job, r), f_(m, job.axis), depositScale_(depositScale), shared_(shared) {
+    // shared: the batch's planes (the deposits are then added there times the job's
+    // weight A_perp w, and scattered by the batch); null: the sweep's own.
+    StepSweep(const Medium& m, const Job& job, int r, float depositScale, LayerPlanes* shared = nullptr)
+        : m_(m), job_(job), g_(m, job, r), f_(m, job.axis), depositScale_(depositScale) {
         const size_t nuPad = size_t(f_.tnu) * K;
         rowStride_ = 3 * nuPad;
         rows_count_ = size_t(r) * r * g_.nv;
@@ -400,9 +428,8 @@ public:
             inj_[c] = double(bnd_[c]) * double(size_t(r) * r * g_.nu * g_.nv);  // padding lanes excluded
         }
         dk_ = shared ? float(g_.aPerp * job.weight) : 1.0f;
-        if (!shared) allocatePlanes();
-        spanLo_.assign(size_t(g_.nv), 0);
-        spanHi_.assign(size_t(g_.nv), 0);
+        if (!shared) own_ = std::make_unique<LayerPlanes>(m, job.axis);
+        planes_ = shared ? shared : own_.get();
         stU_.resize(size_t(r));
         stV_.resize(size_t(r));
         for (int j = 0; j < r; ++j) {
@@ -411,15 +438,30 @@ public:
         }
     }
 
+    // A sweep with its own planes: every layer gathered, swept and scattered to phi.
     void run(float* phi, Tally& tally) {
-        const int layers = f_.tna;
-        for (int l = 0; l < layers; ++l) {
-            const int layer = job_.sign > 0 ? l : layers - 1 - l;
-            const bool any = shared_ ? useShared(layer) : gather(layer);
-            const int s0 = layer * K, s1 = std::min(g_.na, s0 + K);
-            for (int k = 0; k < s1 - s0; ++k) sweepSlice(job_.sign > 0 ? s0 + k : s1 - 1 - k, any);
-            if (any && !shared_) scatter(layer, phi);
+        const float k = float(g_.aPerp) * depositScale_;
+        for (int l = 0; l < f_.tna; ++l) {
+            const int layer = layerAt(l);
+            const bool any = planes_->gather(layer, job_);
+            sweepLayer(layer, any);
+            if (any) planes_->scatter(layer, k, phi, sca_, injSrc_);
         }
+        finish(tally);
+    }
+
+    // The l-th tile layer this sweep crosses (its direction's order along the axis).
+    int layerAt(int l) const { return job_.sign > 0 ? l : f_.tna - 1 - l; }
+
+    // The slices of one tile layer, whose planes have been gathered; any: it holds
+    // allocated tiles.
+    void sweepLayer(int layer, bool any) {
+        const int s0 = layer * K, s1 = std::min(g_.na, s0 + K);
+        for (int k = 0; k < s1 - s0; ++k) sweepSlice(job_.sign > 0 ? s0 + k : s1 - 1 - k, any);
+    }
+
+    // After the last layer: the rays still in the block escape; adds this sweep's tally.
+    void finish(Tally& tally) {
         const size_t nuPad = rowStride_ / 3;
         for (size_t row = 0; row < rows_count_ * rowStride_; row += rowStride_) {
             applyShift(row);
@@ -441,76 +483,6 @@ public:
     }
 
 private:
-    // The per-layer planes cover, per tile row tv, the tiles between the first and the last
-    // allocated one over all layers, so a sparse volume in a large box costs no plane
-    // memory for its empty space.
-    void allocatePlanes() {
-        ownRows_.assign(size_t(f_.tnv), PlaneRow{});
-        size_t total = 0;
-        for (int tv = 0; tv < f_.tnv; ++tv) {
-            int first = f_.tnu, last = -1;
-            for (int layer = 0; layer < f_.tna; ++layer) {
-                int lf, ll;
-                f_.rowExtent(layer, tv, lf, ll);
-                if (lf < 0) continue;
-                first = std::min(first, lf);
-                last = std::max(last, ll);
-            }
-            PlaneRow& pr = ownRows_[size_t(tv)];
-            pr.first = last < 0 ? 0 : first;
-            pr.width = last < 0 ? 0 : last - first + 1;
-            pr.base = total;
-            total += size_t(pr.width) * K * K * kChunk;
-        }
-        ownP_.assign(total, 0.0f);
-        rows_ = ownRows_.data();
-        P_ = ownP_.data();
-    }
-
-    // Sets the voxel rows' spans of allocated tiles (tile-granular) of one layer.
-    void setSpan(int tv, int first, int last) {
-        const int lo = first < 0 ? 0 : first * K, hi = first < 0 ? 0 : std::min(g_.nu, (last + 1) * K);
-        for (int cv = tv * K; cv < std::min(g_.nv, (tv + 1) * K); ++cv) {
-            spanLo_[cv] = lo;
-            spanHi_[cv] = hi;
-        }
-    }
-
-    // Fills the layer's own planes over the span of allocated tiles of each tile row;
-    // returns whether the layer holds any allocated tile.
-    bool gather(int layer) {
-        bool any = false;
-        for (int tv = 0; tv < f_.tnv; ++tv) {
-            int first, last;
-            f_.rowExtent(layer, tv, first, last);
-            any = any || first >= 0;
-            setSpan(tv, first, last);
-            for (int tu = std::max(first, 0); first >= 0 && tu <= last; ++tu) gatherTile(f_, job_, rows_, P_, layer, tu, tv);
-        }
-        return any;
-    }
-
-    // Points at the shared planes of the layer; returns whether it holds allocated tiles.
-    bool useShared(int layer) {
-        rows_ = shared_->rows(layer);
-        P_ = shared_->data();
-        bool any = false;
-        for (int tv = 0; tv < f_.tnv; ++tv) {
-            const PlaneRow& pr = rows_[tv];
-            any = any || pr.width > 0;
-            setSpan(tv, pr.width > 0 ? pr.first : -1, pr.first + pr.width - 1);
-        }
-        return any;
-    }
-
-    // Adds the layer's deposits to phi (allocated voxels only) and tallies them (float sums
-    // per tile, added in double).
-    void scatter(int layer, float* phi) {
-        const float k = float(g_.aPerp) * depositScale_;
-        for (int tv = 0; tv < f_.tnv; ++tv)
-            for (int tu = 0; tu < f_.tnu; ++tu) scatterTile(f_, rows_, P_, layer, tu, tv, k, phi, sca_, injSrc_);
-    }
-
     // One slice: every ray row, every lattice class in it (rows outer, so the plane rows a
     // row of rays touches stay in L1 across the r^2 classes).
     void sweepSlice(int ia, bool any) {
@@ -637,13 +609,13 @@ private:
                 continue;
             }
             if (!any) continue;  // the slice lies in empty tiles: rays cross it unchanged
-            const int lo = spanLo_[vr], hi = spanHi_[vr];
+            const int lo = planes_->spanLo()[vr], hi = planes_->spanHi()[vr];
             if (lo >= hi) continue;  // the voxel row lies in empty tiles
             applyShift(row);
             materialize(row);
             // lo is tile-aligned; hi rounds up into the padding columns (sigma = 0 there).
             const int chunks = (hi - lo + K - 1) / K;
-            float* plane = &P_[planeIndex(rows_, vr, slice_, lo)];
+            float* plane = &planes_->data()[planeIndex(planes_->rows(), vr, slice_, lo)];
             if (job_.src)
                 segmentChunks<true>(chunks, float(e.len), dk_, plane, &L_[row + size_t(lo)], rowStride_ / 3);
             else
@@ -657,19 +629,15 @@ private:
     const Geometry g_;
     const AxisFrame f_;
     const float depositScale_;
-    AxisPlanes* shared_;
+    std::unique_ptr<LayerPlanes> own_;  // own planes, when not shared
+    LayerPlanes* planes_ = nullptr;     // the planes swept through (own or a batch's)
     float dk_ = 1.0f;  // deposit factor in the kernel
     int slice_ = 0;
-    std::vector<PlaneRow> ownRows_;  // own planes: per tile row, over all layers
-    std::vector<float> ownP_;        // own planes: the current tile layer
-    const PlaneRow* rows_ = nullptr;  // the current layer's plane rows (own or shared)
-    float* P_ = nullptr;
     size_t rowStride_ = 0;
     size_t rows_count_ = 0;            // ray rows
     std::unique_ptr<float[]> L_;       // ray radiance, valid in rows that are not pristine
     std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (L_ not written)
     std::vector<int> pending_;  // per ray row: u crossings not yet applied
-    std::vector<int> spanLo_, spanHi_;  // per voxel row: columns in allocated tiles (tile-granular)
     std::vector<ClassState> stU_, stV_;
     std::vector<double> lamU_[16], lamV_[16];  // this slice's crossings per class (r <= 16)
     int SV_[16] = {};
@@ -698,20 +666,34 @@ void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r,
         if (j->srcLinear || j->axis != first.axis || j->src != first.src || j->srcStride != first.srcStride ||
             j->srcScale.r != first.srcScale.r || j->srcScale.g != first.srcScale.g || j->srcScale.b != first.srcScale.b)
             throw Error("LPM", "a sweep batch takes jobs of one sweep axis and one voxel-constant source");
-    AxisPlanes planes(m, first.axis, first);
-    double weights = 0;
-    for (const Job* j : jobs) {
-        StepSweep(m, *j, r, 1.0f, &planes).run(nullptr, tally);
-        weights += j->weight;
-    }
-    double sca[3] = {0, 0, 0}, src[3] = {0, 0, 0};
-    planes.scatter(depositPerWeight, phi, sca, src);
+    // The jobs of each sign cross the layers in the same order: they advance together,
+    // layer by layer, through one set of planes gathered once per layer for all of them.
     const double V = m.voxelVolume();
     const double alb[3] = {m.albedo.r, m.albedo.g, m.albedo.b};
-    for (int c = 0; c < 3; ++c) {
-        tally.injected[c] += src[c] * V * weights;
-        tally.scattered[c] += alb[c] * sca[c];
-        tally.absorbed[c] += (1 - alb[c]) * sca[c];
+    for (int sign : {1, -1}) {
+        std::vector<std::unique_ptr<StepSweep>> sweeps;
+        LayerPlanes planes(m, first.axis);
+        double weights = 0;
+        for (const Job* j : jobs)
+            if (j->sign == sign) {
+                sweeps.push_back(std::make_unique<StepSweep>(m, *j, r, 1.0f, &planes));
+                weights += j->weight;
+            }
+        if (sweeps.empty()) continue;
+        double sca[3] = {0, 0, 0}, src[3] = {0, 0, 0};
+        const int layers = (std::array<int, 3>{m.nx, m.ny, m.nz}[size_t(first.axis)] + Medium::kTile - 1) / Medium::kTile;
+        for (int l = 0; l < layers; ++l) {
+            const int layer = sweeps[0]->layerAt(l);
+            const bool any = planes.gather(layer, first);
+            for (auto& sw : sweeps) sw->sweepLayer(layer, any);
+            if (any) planes.scatter(layer, depositPerWeight, phi, sca, src);
+        }
+        for (auto& sw : sweeps) sw->finish(tally);
+        for (int c = 0; c < 3; ++c) {
+            tally.injected[c] += src[c] * V * weights;
+            tally.scattered[c] += alb[c] * sca[c];
+            tally.absorbed[c] += (1 - alb[c]) * sca[c];
+        }
     }
 }
 
