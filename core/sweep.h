@@ -66,9 +66,10 @@ void sweepReference(const Medium& m, const Job& job, int r, float* phi, Tally& t
 void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally, float depositScale = 1.0f);
 
 /// The sweeps of `jobs`, all with one sweep axis and one voxel-constant source (src,
-/// srcStride, srcScale), with the medium and the source laid out in the kernel's planes once
-/// for all of them and their deposits accumulated there (docs/performance.md, "Batched
-/// sweeps"): phi [stored voxel][rgb] += depositPerWeight * sum_j weight_j Phi_j, that is
+/// srcStride, srcScale): the jobs of each sign advance together layer by layer, each tile
+/// layer's planes (medium, source) gathered once for all of them and their deposits
+/// accumulated there (docs/performance.md, "Batched sweeps"):
+/// phi [stored voxel][rgb] += depositPerWeight * sum_j weight_j Phi_j, that is
 /// sweepStep of each job with depositScale = depositPerWeight * weight_j, in job order
 /// (float rounding differs). The tally sums those of the jobs.
 void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
