@@ -671,6 +671,7 @@ void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r,
     const double V = m.voxelVolume();
     const double alb[3] = {m.albedo.r, m.albedo.g, m.albedo.b};
     for (int sign : {1, -1}) {
+        if (std::none_of(jobs.begin(), jobs.end(), [&](const Job* j) { return j->sign == sign; })) continue;
         std::vector<std::unique_ptr<StepSweep>> sweeps;
         LayerPlanes planes(m, first.axis);
         double weights = 0;

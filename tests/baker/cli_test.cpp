@@ -79,6 +79,9 @@ TEST(Cli, UsageErrorsExit1) {
                        "usage", {"--g"});
     expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--source", "cubic"}, dir),
                        1, "usage", {"--source", "cubic"});
+    expectOneLineError(
+        runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--rays-higher-orders", "0"}, dir), 1,
+        "usage", {"--rays-higher-orders", "got 0"});
     expectOneLineError(runLpmbake({"render", dataPath("vdb/torus01.vdb"), "-o", dir + "/x.jpg"}, dir), 1, "usage",
                        {".exr", ".png"});
     EXPECT_FALSE(fs::exists(out));
