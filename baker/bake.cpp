@@ -12,6 +12,7 @@
 #include "baker/peak_memory.h"
 #include "baker/sidecar.h"
 #include "baker/text_format.h"
+#include "core/lpm_cache.h"
 #include "core/parallel.h"
 #include "core/sh.h"
 #include "vdb_io/atomic_file.h"
@@ -78,6 +79,40 @@ void checkOptions(const BakeOptions& o) {
     if (!(o.envScale >= 0) || !std::isfinite(o.envScale)) throw UsageError("--env-scale must be finite and >= 0");
 }
 
+/// The effect planner's plan with its predicted costs, and the measured cost of each stage
+/// of the solve (docs/solve_plan.md).
+void writePlanAndStages(std::ostream& j, const LpmResult& r) {
+    const SolvePlan& p = r.plan;
+    j << "  \"plan\": {\"predicted_fine_pass_segments\": " << p.predictedSegmentsPerFinePass
+      << ", \"predicted_fine_pass_s\": " << p.predictedSecondsPerFinePass
+      << ", \"predicted_buffers_mib\": " << p.predictedBytes / (1 << 20) << ", \"decisions\": [";
+    for (size_t i = 0; i < p.decisions.size(); ++i) {
+        const PlanDecision& d = p.decisions[i];
+        j << (i ? "," : "") << "\n    {\"decision\": \"" << jsonEscape(d.what) << "\", \"reason\": \"" << jsonEscape(d.why)
+          << "\"";
+        if (d.predictedSeconds >= 0) j << ", \"predicted_s\": " << d.predictedSeconds;
+        if (d.predictedBytes >= 0) j << ", \"predicted_mib\": " << d.predictedBytes / (1 << 20);
+        j << "}";
+    }
+    j << "]},\n";
+    double single = 0, fine = 0, coarse = 0, krylov = 0, firstFine = -1;
+    std::uint64_t firstFineSegments = 0;
+    for (const PassStats& ps : r.passes) {
+        if (ps.pass == 0) single += ps.seconds;
+        else if (ps.coarse) coarse += ps.seconds;
+        else if (ps.krylov) krylov += ps.seconds;
+        else fine += ps.seconds;
+        if (ps.pass > 0 && !ps.coarse && firstFine < 0) {
+            firstFine = ps.seconds;
+            firstFineSegments = ps.segments;
+        }
+    }
+    j << "  \"stages_s\": {\"single_scattering\": " << single << ", \"sun_terms\": " << r.sunTermSeconds
+      << ", \"fine_orders\": " << fine << ", \"coarse_orders\": " << coarse << ", \"gmres\": " << krylov
+      << ", \"first_fine_pass\": " << std::max(0.0, firstFine) << ", \"first_fine_pass_segments\": " << firstFineSegments
+      << "},\n";
+}
+
 void writeStats(const BakeOptions& o, const BakeSummary& s, const LpmResult* r) {
     std::ostringstream j;
     j << std::setprecision(9);
@@ -109,9 +144,11 @@ void writeStats(const BakeOptions& o, const BakeSummary& s, const LpmResult* r) 
             j << (i ? "," : "") << "\n    {\"pass\": " << p.pass << ", \"injected\": " << p.injected
               << ", \"scattered\": " << p.scattered << ", \"absorbed\": " << p.absorbed << ", \"escaped\": "
               << p.escaped << ", \"seconds\": " << p.seconds << ", \"krylov\": " << (p.krylov ? "true" : "false")
-              << ", \"coarse\": " << (p.coarse ? "true" : "false") << "}";
+              << ", \"coarse\": " << (p.coarse ? "true" : "false") << ", \"segments\": " << p.segments << "}";
         }
-    j << "\n  ],\n  \"decisions\": [";
+    j << "\n  ],\n";
+    if (r) writePlanAndStages(j, *r);
+    j << "  \"decisions\": [";
     if (r)
         for (size_t i = 0; i < r->decisions.size(); ++i)
             j << (i ? ", " : "") << "\"" << jsonEscape(r->decisions[i]) << "\"";
@@ -233,6 +270,8 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
     if (context) {
         if (!context->solverCache) context->solverCache = std::make_shared<LpmCache>();
         settings.cache = context->solverCache;
+    } else {
+        settings.cache = std::make_shared<LpmCache>();  // the plan's environment binning, reused by the solve
     }
     // Progress: every pass with -v; otherwise, once the solve has run for a second, at
     // most one line a second (farm logs stay short, long interactive runs show life).
@@ -251,6 +290,8 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
     }
     t = Clock::now();
     if (!vol.empty) {
+        if (log.verbosity >= 2)
+            for (const std::string& line : planLpm(m, lights, settings).lines()) log.debug("plan: " + line);
         res = solveLpm(m, lights, settings);
         for (const auto& d : res.decisions) log.note("solver: " + d);
     } else {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "core/delta_m.h"
 #include "lpm_vs_mc.h"
 
 using namespace lpm;
@@ -94,4 +95,25 @@ TEST(DeltaM, ForwardPeakAgainstMonteCarlo) {
     EXPECT_LT(ed.band12Rms, 0.06);
     EXPECT_LT(ed.band12Rms, ep.band12Rms);
     EXPECT_LT(rd.passes.size(), rp.passes.size());
+}
+
+// The similarity transform itself (core/delta_m.h): absorption and the transport
+// coefficient sigma_s (1 - g) are kept, voxel by voxel.
+TEST(DeltaM, ScaledMediumKeepsAbsorptionAndTransport) {
+    Medium m = makeBox(3, 3, 3, 2.0);
+    m.sigmaT[5] = 0.25f;
+    m.albedo = RGB(0.95f);
+    m.g = 0.85;
+    const double f = std::pow(m.g, 4);
+    const Medium sm = deltaMScaled(m, f);
+    const double c = m.albedo.r, cs = sm.albedo.r;
+    for (size_t v = 0; v < m.voxelCount(); ++v) {
+        const double st = m.sigmaT[v], sst = sm.sigmaT[v];
+        EXPECT_NEAR(sst * (1 - cs), st * (1 - c), 1e-6 * st) << "absorption";
+        EXPECT_NEAR(sst * cs * (1 - sm.g), st * c * (1 - m.g), 1e-6 * st) << "transport";
+    }
+    Medium tinted = m;
+    tinted.albedo = RGB(0.9f, 0.8f, 0.7f);
+    EXPECT_THROW(deltaMScaled(tinted, f), Error);
+    EXPECT_THROW(deltaMScaled(m, 1.0), Error);
 }

@@ -1,0 +1,33 @@
+// Restarted GMRES (Saad and Schultz 1986, "GMRES: a generalized minimal residual algorithm
+// for solving nonsymmetric linear systems", SIAM J. Sci. Stat. Comput. 7(3)), with
+// modified Gram-Schmidt and Givens rotations, in a weighted inner product
+// <a, b> = sum_i w_i a_i b_i. The solver uses it on the scattering-order iteration:
+// (I - K) X = B with K one propagation pass (docs/lpm_solver.md). Every reduction is
+// chunked in a fixed order, so results do not depend on the thread count.
+#pragma once
+
+#include <functional>
+#include <vector>
+
+namespace lpm {
+
+struct GmresReport {
+    int matvecs = 0;          ///< applications of A, the true-residual ones included
+    double rhsNorm = 0;       ///< ||B||_w
+    double residualNorm = 0;  ///< ||B - A X||_w at the end
+    bool converged = false;   ///< residualNorm <= target
+};
+
+/// y = A x (y has x's size on entry).
+using LinearOperator = std::function<void(const std::vector<float>& x, std::vector<float>& y)>;
+
+/// Solves A X = B from X = 0 until ||B - A X||_w <= target, in cycles of at most `restart`
+/// Krylov vectors, each closed by one true-residual product. `mayApply` is asked before
+/// each product of a cycle and before each new cycle; false stops (a pass budget).
+GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, const std::vector<double>& weights,
+                       double target, int restart, const std::function<bool()>& mayApply, std::vector<float>& X);
+
+/// <a, b>_w summed in fixed chunks (thread-count independent).
+double weightedDot(const std::vector<double>& w, const std::vector<float>& a, const std::vector<float>& b);
+
+}  // namespace lpm

@@ -1,0 +1,65 @@
+// One LPM solve carried out (internal to core/lpm_solver.cpp and core/two_grid.cpp): the
+// plan's passes in order. Pass 0 sweeps the external light (or, on the coarse grid of a
+// two-grid solve, the restricted source); the passes after it propagate what the last one
+// scattered (source iteration), until the tail falls below the tolerance, the coarse grid
+// takes over (docs/multires.md), or GMRES does (core/gmres.h).
+#pragma once
+
+#include <chrono>
+#include <memory>
+#include <vector>
+
+#include "core/job_factory.h"
+#include "core/lpm_cache.h"
+#include "core/lpm_solver.h"
+#include "core/pass_runner.h"
+#include "core/quadrature.h"
+#include "core/solve_plan.h"
+
+namespace lpm {
+
+class LpmSolve {
+public:
+    /// `initialSource`: null for the external-light problem; for the coarse continuation of
+    /// a two-grid solve, the restricted unshot [voxel][bin][rgb] that replaces pass 0.
+    LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, const SolvePlan& plan,
+             std::shared_ptr<LpmCache> cache, const std::vector<float>* initialSource);
+    LpmResult run();
+
+private:
+    using Clock = std::chrono::steady_clock;
+    void passZero();
+    void startFromSource();
+    bool iterate();  ///< source iteration; true when GMRES is to take over
+    void continueOnCoarse(int firstPass);  // core/two_grid.cpp
+    void finishWithGmres();
+    void clampNegativeLinear();
+    void addToSourceSum(const std::vector<float>& src);
+    void recordPass(int pass, const Tally& t, Clock::time_point start, bool physical = true);
+    double sourcePower(const std::vector<float>& u) const;  ///< sigma_s U V w_d summed, mean over RGB
+    std::vector<Job> sourceJobs(const std::vector<float>& src) const {
+        return jobs_.sourceJobs(src, M_, m_.albedo);
+    }
+
+    const Medium& m_;
+    const Lights& lights_;
+    const LpmSettings& s_;
+    const SolvePlan& plan_;
+    std::shared_ptr<LpmCache> cache_;
+    const std::vector<float>* initialSource_;
+    LpmResult res_;
+    size_t N_;
+    double V_;
+    int M_, nb_, nc_, r_;
+    size_t perVoxel_;
+    CubeQuadrature quad_;
+    std::shared_ptr<const FormFactors> ff_;
+    JobFactory jobs_;
+    std::vector<std::uint8_t> slopeVoxel_;
+    std::unique_ptr<PassRunner> runner_;
+    std::vector<float> unshot_, next_;  ///< [voxel][bin][moment][rgb]
+    int pass_ = 1;
+    bool continuedOnCoarse_ = false;
+};
+
+}  // namespace lpm

@@ -1,0 +1,181 @@
+// A propagation pass: sweeps in batches, deposits folded in job order (core/pass_runner.h).
+#include "core/pass_runner.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/parallel.h"
+
+namespace lpm {
+
+std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>& jobs, int split) {
+    auto sameKey = [](const Job& a, const Job& b) {
+        return a.axis == b.axis && a.src == b.src && a.srcStride == b.srcStride && a.srcScale.r == b.srcScale.r &&
+               a.srcScale.g == b.srcScale.g && a.srcScale.b == b.srcScale.b;
+    };
+    std::vector<std::vector<const Job*>> keys;
+    for (const Job& j : jobs) {
+        auto it = std::find_if(keys.begin(), keys.end(), [&](const auto& k) { return sameKey(*k[0], j); });
+        if (it == keys.end()) keys.push_back({&j});
+        else it->push_back(&j);
+    }
+    // Batch s of every key before batch s + 1 of any: the halves of the list that two
+    // threads take first then hold one batch of each axis (the axes' costs differ).
+    std::vector<std::vector<const Job*>> batches;
+    for (int part = 0; part < split; ++part)
+        for (const auto& k : keys) {
+            const size_t n = std::min(k.size(), size_t(split));
+            if (size_t(part) >= n) continue;
+            batches.emplace_back();
+            for (size_t i = size_t(part); i < k.size(); i += n) batches.back().push_back(k[i]);
+        }
+    return batches;
+}
+
+namespace {
+
+/// An RGB triple repeated 8 times: 24 floats = 3 channels x 8 lanes.
+struct RgbRepeat {
+    float v[24];
+    explicit RgbRepeat(const float* p) {
+        for (int k = 0; k < 24; k += 3) {
+            v[k] = p[0];
+            v[k + 1] = p[1];
+            v[k + 2] = p[2];
+        }
+    }
+};
+
+/// dst[i] += coef[i] * p[i % 3] for i < 3 count: coefficients repeated per channel times an
+/// RGB triple, written so that it vectorises.
+inline void addTimesRgb(float* __restrict dst, const float* __restrict coef, const RgbRepeat& p, int count) {
+    int i = 0;
+    for (; i + 24 <= 3 * count; i += 24)
+        for (int k = 0; k < 24; ++k) dst[i + k] += coef[i + k] * p.v[k];
+    for (; i < 3 * count; ++i) dst[i] += coef[i] * p.v[i % 3];
+}
+
+/// Folds the deposits phi[j] ([voxel][moment][rgb]) of jobs[0..n) into the SH result
+/// ([voxel][coeff][rgb], when depositSh) and the next unshot source `out`
+/// ([voxel][bin][moment][rgb]). Voxels outer, jobs inner (in job order, so the sums do not
+/// depend on the thread count): a voxel's unshot row stays in L1 across the jobs instead
+/// of streaming through memory once per job.
+void foldDeposits(const FoldShape& f, bool depositSh, const Job* jobs, size_t n,
+                  const std::vector<std::vector<float>>& phi, const std::vector<std::uint8_t>& slopeVoxel,
+                  std::vector<float>& sh, std::vector<float>& out) {
+    const int nb = f.bins, M = f.moments, nc = f.coeffs;
+    const size_t N = phi.empty() ? 0 : phi[0].size() / (3 * size_t(M)), perVoxel = size_t(nb) * M * 3;
+    // Per job, each bin and SH coefficient repeated for the 3 channels.
+    std::vector<float> binC(n * nb * 3), shC(n * nc * 3);
+    for (size_t j = 0; j < n; ++j)
+        for (int c = 0; c < 3; ++c) {
+            for (int d = 0; d < nb; ++d) binC[(j * nb + d) * 3 + c] = float(jobs[j].binCoef[d]);
+            for (int k = 0; k < nc; ++k) shC[(j * nc + k) * 3 + c] = float(jobs[j].shCoef[k]);
+        }
+    parallelForChunks(N, 1024, [&](size_t vb, size_t ve) {
+        for (size_t x = vb; x < ve; ++x) {
+            float* un = &out[x * perVoxel];
+            const int mx = slopeVoxel.empty() || slopeVoxel[x] ? M : 1;
+            for (size_t j = 0; j < n; ++j) {
+                const float* p = &phi[j][x * 3 * M];  // [moment][rgb]; moment 0 is the mean
+                if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
+                const RgbRepeat rep(p);
+                if (depositSh) addTimesRgb(&sh[x * nc * 3], &shC[j * nc * 3], rep, nc);
+                const float* cj = &binC[j * nb * 3];
+                if (M == 1) {
+                    addTimesRgb(un, cj, rep, nb);
+                    continue;
+                }
+                for (int d = 0; d < nb; ++d) {
+                    const float bc = cj[d * 3];
+                    for (int c = 0; c < 3; ++c) un[d * M * 3 + c] += bc * p[c];
+                    // Least-squares slope from the first moment: Int xi_k^2 = 1/12.
+                    for (int k = 1; k < mx; ++k)
+                        for (int c = 0; c < 3; ++c) un[(d * M + k) * 3 + c] += 12.0f * bc * p[k * 3 + c];
+                }
+            }
+        }
+    });
+}
+
+}  // namespace
+
+PassRunner::PassRunner(const Medium& m, FoldShape shape, const std::vector<std::uint8_t>& slopeVoxel,
+                       std::vector<float>& sh)
+    : m_(m), shape_(shape), slopeVoxel_(slopeVoxel), sh_(sh) {}
+
+void PassRunner::run(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const {
+    if (isotropic(jobs)) runIsotropic(jobs, r, total, depositSh, out);
+    else runGeneral(jobs, r, total, depositSh, out);
+}
+
+// Every job of the isotropic fold must share the SH-per-bin and bin-per-weight ratios.
+bool PassRunner::isotropic(const std::vector<Job>& jobs) const {
+    if (!(shape_.moments == 1 && shape_.bins == 1 && shape_.coeffs == 1)) return false;
+    if (jobs.empty()) return true;
+    const double ratio = jobs[0].shCoef[0] / jobs[0].binCoef[0], perWeight = jobs[0].binCoef[0] / jobs[0].weight;
+    auto near = [](double a, double b) { return std::fabs(a - b) <= 1e-9 * std::fabs(b); };
+    for (const Job& j : jobs)
+        if (!near(j.shCoef[0] / j.binCoef[0], ratio) || !near(j.binCoef[0] / j.weight, perWeight)) return false;
+    return true;
+}
+
+// Sweeps in parallel (one buffer per job), then folds the batch in job order, in parallel
+// over voxels. Thread-count independent by construction.
+void PassRunner::runGeneral(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh,
+                            std::vector<float>& out) const {
+    const size_t N = m_.voxelCount();
+    const int M = shape_.moments;
+    const size_t batchMem = size_t(512) << 20;
+    const size_t maxBatch = std::max<size_t>(1, batchMem / std::max<size_t>(1, N * 3 * M * sizeof(float)));
+    const size_t batch = std::min(jobs.size(), std::min<size_t>(maxBatch, 16));
+    std::vector<std::vector<float>> phi(batch);
+    for (size_t b0 = 0; b0 < jobs.size(); b0 += batch) {
+        const size_t nbatch = std::min(batch, jobs.size() - b0);
+        std::vector<Tally> tallies(nbatch);
+        parallelForChunks(nbatch, 1, [&](size_t jb, size_t je) {
+            for (size_t j = jb; j < je; ++j) {
+                phi[j].assign(N * 3 * M, 0.0f);
+                if (M == 4) sweepReference<true>(m_, jobs[b0 + j], r, phi[j].data(), tallies[j]);
+                else sweepStep(m_, jobs[b0 + j], r, phi[j].data(), tallies[j]);
+            }
+        });
+        for (size_t j = 0; j < nbatch; ++j) total.add(tallies[j]);
+        foldDeposits(shape_, depositSh, &jobs[b0], nbatch, phi, slopeVoxel_, sh_, out);
+    }
+}
+
+// Isotropic bins, SH order 0 and a voxel-constant source: every job folds as one scalar
+// (its bin coefficient) times the same pair (1 for the bin, shPerBin for band 0), so jobs
+// deposit straight into fixed accumulators: no per-direction buffer and no fold pass.
+// The accumulators are the sweep batches (jobs of one axis and one source, dealt
+// alternately into kBatchSplit groups, in job order; sweepStepBatch shares their planes),
+// so the sums are the same for any thread count.
+void PassRunner::runIsotropic(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh,
+                              std::vector<float>& out) const {
+    constexpr int kBatchSplit = 2;
+    const size_t N = m_.voxelCount();
+    const double shPerBin = jobs.empty() ? 0.0 : jobs[0].shCoef[0] / jobs[0].binCoef[0];
+    const float perWeight = jobs.empty() ? 0.0f : float(jobs[0].binCoef[0] / jobs[0].weight);
+    const std::vector<std::vector<const Job*>> batches = sweepBatches(jobs, kBatchSplit);
+    const size_t G = batches.size();
+    std::vector<std::vector<float>> acc(G);
+    std::vector<Tally> tallies(G);
+    parallelForChunks(G, 1, [&](size_t gb, size_t ge) {
+        for (size_t g = gb; g < ge; ++g) {
+            acc[g].assign(N * 3, 0.0f);
+            sweepStepBatch(m_, batches[g], r, acc[g].data(), tallies[g], perWeight);
+        }
+    });
+    for (const Tally& t : tallies) total.add(t);
+    parallelForChunks(N * 3, 1 << 14, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) {
+            float sum = 0;
+            for (size_t g = 0; g < G; ++g) sum += acc[g][i];
+            out[i] += sum;
+            if (depositSh) sh_[i] += float(shPerBin * sum);
+        }
+    });
+}
+
+}  // namespace lpm

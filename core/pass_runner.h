@@ -1,0 +1,51 @@
+// One propagation pass of the solver carried out: a list of sweep jobs (core/sweep.h)
+// swept and their deposits folded into the SH result and the next unshot source. Two
+// ways, chosen per pass: the isotropic fold (one bin, SH order 0, voxel-constant source),
+// where every job's fold is a scalar and batches deposit straight into fixed
+// accumulators; and the general fold, per-direction deposits folded voxel by voxel into
+// every bin and SH coefficient (docs/performance.md, "Fold"). Both give sums that do not
+// depend on the thread count.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/medium.h"
+#include "core/sweep.h"
+
+namespace lpm {
+
+/// Sizes of the per-direction fold: unshot bins, source moments, SH coefficients.
+struct FoldShape {
+    int bins = 1, moments = 1, coeffs = 1;
+};
+
+class PassRunner {
+public:
+    /// `slopeVoxel`: with a linear source, which voxels keep their slopes (empty: all).
+    /// `sh` ([voxel][coeff][rgb]) receives the SH deposits of passes run with depositSh.
+    PassRunner(const Medium& m, FoldShape shape, const std::vector<std::uint8_t>& slopeVoxel, std::vector<float>& sh);
+
+    /// Sweeps `jobs` with r rays per voxel; adds their tallies to `total`, their unshot
+    /// deposits to `out` ([voxel][bin][moment][rgb]) and, with depositSh, their SH to sh.
+    void run(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const;
+
+    /// Whether `jobs` take the isotropic fold.
+    bool isotropic(const std::vector<Job>& jobs) const;
+
+private:
+    void runGeneral(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const;
+    void runIsotropic(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const;
+
+    const Medium& m_;
+    FoldShape shape_;
+    const std::vector<std::uint8_t>& slopeVoxel_;
+    std::vector<float>& sh_;
+};
+
+/// The jobs grouped into sweep batches (sweepStepBatch): per sweep axis and source (in order
+/// of first appearance), the jobs dealt alternately into `split` batches in job order. The
+/// grouping depends on the jobs only, never on the thread count.
+std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>& jobs, int split);
+
+}  // namespace lpm

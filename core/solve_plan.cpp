@@ -1,0 +1,282 @@
+// The effect planner (core/solve_plan.h, docs/solve_plan.md). Each plan* function below
+// makes one kind of decision, from the summary and the settings only.
+#include "core/solve_plan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "core/env_binning.h"
+#include "core/medium.h"
+#include "core/quadrature.h"
+#include "core/sh.h"
+
+namespace lpm {
+
+namespace {
+
+std::string format(const char* fmt, double a = 0, double b = 0, double c = 0, double d = 0, double e = 0) {
+    char buf[320];
+    std::snprintf(buf, sizeof buf, fmt, a, b, c, d, e);
+    return buf;
+}
+
+std::string dims(int k) { return std::to_string(k) + "x" + std::to_string(k) + "x" + std::to_string(k); }
+
+/// Mean ray segments a ray makes per voxel slice it crosses, over the directions of an
+/// n x n-per-face quadrature: 1 + (|w_u| + |w_v|) / |w_axis|.
+double segmentsPerSlice(int n) {
+    const CubeQuadrature quad(n);
+    double sum = 0;
+    for (int i = 0; i < quad.count(); ++i) {
+        const Vec3& w = quad.dir(i);
+        const int a = CubeQuadrature::faceAxis(quad.face(i));
+        sum += (std::fabs(w.x) + std::fabs(w.y) + std::fabs(w.z)) / std::fabs(w[a]);
+    }
+    return sum / quad.count();
+}
+
+void planSubdivision(SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
+    plan.subdivide = s.subdivide;
+    if (s.subdivide == 1) return;
+    const int k = s.subdivide;
+    for (int& d : scene.dims) d *= k;
+    scene.storedVoxels *= size_t(k) * k * k;
+    scene.maxVoxelTau /= k;
+    plan.decisions.push_back({"solved on voxels split " + dims(k) + " and averaged back",
+                              "requested (--subdivide): the medium is the same, the voxels " + std::to_string(k) +
+                                  "x thinner optically"});
+}
+
+/// Delta-M (Wiscombe 1977) with f = g^4 (core/delta_m.h): the propagation then sees the
+/// scaled medium; S keeps the true phase function's g.
+void planDeltaM(SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
+    plan.gOut = plan.gPropagation = scene.g;
+    if (scene.continuation || s.deltaM == 0 || scene.g <= 0) return;
+    if (s.deltaM < 0 && !(scene.g > s.deltaMAbove)) return;
+    const RGB& a = scene.albedo;
+    if (!(a.r == a.g && a.g == a.b)) {
+        plan.decisions.push_back({"no delta-M", "the albedo is not grey (the scaled extinction would differ per channel)"});
+        return;
+    }
+    const double g = scene.g, f = g * g * g * g, c = a.r, k = 1 - c * f;
+    plan.deltaM = true;
+    plan.deltaMFraction = f;
+    plan.gPropagation = (g - f) / (1 - f);
+    scene.maxVoxelTau *= k;
+    plan.decisions.push_back(
+        {format("delta-M forward-peak truncation (g = %.4g > %.3g)", g, s.deltaM > 0 ? 0.0 : s.deltaMAbove),
+         format("f = g^4 = %.4g of scattering treated as unscattered; propagation with g' = %.4g, albedo %.4g, "
+                "extinction x %.4g",
+                f, plan.gPropagation, c * (1 - f) / k, k)});
+}
+
+/// SH order of the result and the unshot bins of the propagation.
+void planAngular(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
+    plan.shOrder = s.shOrder;
+    if (scene.continuation) {
+        plan.shOrder = 0;
+        plan.decisions.push_back({"no SH", "the coarse grid's S is not kept (two-grid continuation)"});
+    } else if (plan.gOut == 0.0 && s.shOrder > 0) {
+        plan.shOrder = 0;
+        plan.decisions.push_back({"SH order 0", "the phase function is isotropic (g = 0), so S has no directional part"});
+    }
+    const double shBytes = double(scene.storedVoxels) * shCount(plan.shOrder) * 3 * sizeof(float);
+    if (plan.shOrder > 0)
+        plan.decisions.push_back({"SH order " + std::to_string(plan.shOrder),
+                                  format("g = %.4g: S depends on the viewing direction", plan.gOut), -1, shBytes});
+    plan.binsPerFace = s.binsPerFace;
+    if (s.binsPerFace >= 0) return;
+    // Bins must nest the direction texels (b divides n), or a direction straddling a bin
+    // edge is given to one side and the scattered light is skewed. Even n: 2x2 per face;
+    // n = 1 or 3: one bin per direction; larger odd n: 1 per face, which is coarse for
+    // forward scattering (measured in docs/accuracy.md).
+    const int n = s.directionsPerFace;
+    plan.binsPerFace = plan.gPropagation == 0.0 ? 0 : (n % 2 == 0 ? 2 : (n <= 3 ? n : 1));
+    const int b = plan.binsPerFace;
+    plan.decisions.push_back(plan.gPropagation == 0.0
+                                 ? PlanDecision{"one isotropic unshot bin", "g = 0"}
+                                 : PlanDecision{std::to_string(b) + "x" + std::to_string(b) + " unshot bins per cube face",
+                                                format("g = %.4g", plan.gPropagation)});
+}
+
+/// Source shape inside a voxel. A voxel-constant (step) source leaks light across
+/// optically thick voxels (it is carried to the exit face undamped); a linear source with
+/// deposited first moments follows the decay inside the voxel (docs/lpm_solver.md).
+void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
+    const double tau = scene.maxVoxelTau;
+    plan.linearSource = s.linearSource == 1 || (s.linearSource < 0 && tau > s.linearSourceAbove);
+    const char* shape = plan.linearSource ? "linear source inside voxels" : "voxel-constant source inside voxels";
+    if (s.linearSource < 0)
+        plan.decisions.push_back({shape, format(plan.linearSource ? "largest voxel optical depth %.3g > %.3g"
+                                                                  : "largest voxel optical depth %.3g <= %.3g",
+                                                tau, s.linearSourceAbove)});
+    else
+        plan.decisions.push_back({std::string(shape) + " (requested)", ""});
+    const double leakAbove = plan.linearSource ? s.linearSourceVoxelCap : 2.0;
+    if (tau > leakAbove)
+        plan.decisions.push_back(
+            {"warning", format("voxels up to optical depth %.3g across; above ~%g light leaks through them (measured "
+                               "in docs/accuracy.md): subdivide by %d to bring it near %g",
+                               tau, leakAbove, std::ceil(tau / leakAbove), leakAbove)});
+}
+
+/// The light passes of pass 0: environment, emission, suns, hot pixels.
+void planLights(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
+    if (scene.continuation) return;
+    plan.environmentPass = scene.environment;
+    plan.emissionPass = scene.emission;
+    plan.sunPasses = scene.suns;
+    plan.hotPixelPasses = scene.hotPixels;
+    const int nd = 6 * s.directionsPerFace * s.directionsPerFace;
+    if (scene.environment)
+        plan.decisions.push_back({"environment pass", std::to_string(nd) + " directions through the boundary"});
+    else
+        plan.decisions.push_back({"no environment pass", "no environment light"});
+    if (scene.hotPixels > 0)
+        plan.decisions.push_back(
+            {"environment",
+             format("hot pixels (each >= %.3g of the power) with %.1f%% of its power swept as %.0f sun(s) in their "
+                    "exact direction",
+                    s.envHotShare, 100 * scene.hotShare, scene.hotPixels)});
+    if (scene.emission)
+        plan.decisions.push_back({"emission pass", "an emission grid: source sigma_a L_e swept along every direction"});
+    else
+        plan.decisions.push_back({"no emission source", "no emission grid"});
+    if (scene.suns > 0)
+        plan.decisions.push_back({"sun pass", std::to_string(scene.suns) + " sun(s) swept in their exact direction"});
+}
+
+/// The resolution schedule of the scattering orders: which run on the 2x coarser grid
+/// (docs/multires.md), with how many directions and rays.
+void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
+    if (!scene.continuation && s.multires != 0) {
+        const bool big = scene.storedVoxels >= size_t(s.multiresMinVoxels);
+        const bool fits = scene.dims[0] >= 4 && scene.dims[1] >= 4 && scene.dims[2] >= 4;
+        if (fits && (s.multires == 1 || big)) plan.coarseFrom = s.multiresAfter + 1;
+        if (plan.coarseFrom > 0)
+            plan.decisions.push_back(
+                {"multi-resolution", "orders >= " + std::to_string(plan.coarseFrom) + " on a 2x coarser grid (" +
+                                         std::to_string(scene.storedVoxels) + " stored voxels" +
+                                         (s.multires == 1 ? ", requested)" : ")")});
+        else
+            plan.decisions.push_back(
+                {"full resolution for every order",
+                 !fits ? "the block is under 4 voxels along an axis"
+                       : std::to_string(scene.storedVoxels) + " stored voxels < " + std::to_string(s.multiresMinVoxels)});
+    }
+    const int n = s.directionsPerFace, half = n / 2, b = plan.binsPerFace;
+    plan.coarseDirectionsPerFace =
+        s.multiresDirections > 0 ? s.multiresDirections : (half >= 2 && (b == 0 || half % b == 0) ? half : n);
+    // Rays of the passes after the first. Auto: one per voxel when the two-grid solve runs:
+    // there the fine passes after single scattering propagate sums of smooth higher orders
+    // (band-0 error against MC unchanged on plume-1M, docs/multires.md).
+    plan.raysSingle = s.raysPerVoxel;
+    plan.raysHigher = s.raysHigherOrders > 0 ? s.raysHigherOrders : (plan.coarseFrom > 0 ? 1 : s.raysPerVoxel);
+    if (plan.raysHigher != plan.raysSingle)
+        plan.decisions.push_back(
+            {"multiple scattering with " + std::to_string(plan.raysHigher) + " ray(s) per voxel" +
+                 (s.raysHigherOrders > 0 ? " (requested)" : " (two-grid solve)"),
+             s.raysHigherOrders > 0 ? "single scattering with " + std::to_string(plan.raysSingle)
+                                    : "the fine passes after single scattering propagate smooth sums of higher "
+                                      "orders; single scattering with " +
+                                          std::to_string(plan.raysSingle)});
+}
+
+void planAcceleration(const LpmSettings& s, SolvePlan& plan) {
+    plan.krylov = s.krylov;
+    plan.krylovAfter = s.krylovAfter;
+    plan.decisions.push_back(
+        s.krylov ? PlanDecision{"GMRES allowed",
+                                "switches from source iteration when the energy ratio per pass predicts more than " +
+                                    std::to_string(s.krylovAfter) + " further passes"}
+                 : PlanDecision{"plain source iteration", "GMRES off (requested)"});
+}
+
+/// Predicted segments, seconds and bytes, attached to the decisions that cause them.
+void planCost(const SceneSummary& scene, const LpmSettings& s, int threads, SolvePlan& plan) {
+    const double N = double(scene.storedVoxels), rate = kPlannedSegmentsPerSecondPerThread * std::max(1, threads);
+    const int n = s.directionsPerFace, nd = 6 * n * n, M = plan.linearSource ? 4 : 1;
+    const int nb = plan.binsPerFace == 0 ? 1 : 6 * plan.binsPerFace * plan.binsPerFace, nc = shCount(plan.shOrder);
+    const double perSlice = segmentsPerSlice(n);
+    plan.predictedSegmentsPerFinePass = nd * double(plan.raysHigher * plan.raysHigher) * N * perSlice;
+    plan.predictedSecondsPerFinePass = plan.predictedSegmentsPerFinePass / rate;
+    const double unshotBytes = 2 * N * nb * M * 3 * sizeof(float);
+    const bool isotropicFold = M == 1 && nb == 1 && nc == 1;
+    const double foldBytes = (isotropicFold ? 6.0 : 16.0) * N * 3 * M * sizeof(float);
+    const double shBytes = N * nc * 3 * sizeof(float);
+    plan.predictedBytes = unshotBytes + foldBytes + shBytes + N * sizeof(float) * (scene.emission ? 4 : 1);
+    const double lightSweeps = (plan.environmentPass || plan.emissionPass ? nd : 0) + plan.sunPasses + plan.hotPixelPasses;
+    for (PlanDecision& d : plan.decisions) {
+        if (d.what == "environment pass" || d.what == "emission pass" || d.what == "sun pass")
+            d.predictedSeconds = lightSweeps * double(plan.raysSingle * plan.raysSingle) * N * perSlice / rate;
+        if (d.what.find("unshot bin") != std::string::npos)
+            d.predictedBytes = unshotBytes + foldBytes;
+        if (d.what == "multi-resolution" || d.what == "full resolution for every order")
+            d.predictedSeconds = plan.predictedSecondsPerFinePass;
+    }
+    if (plan.coarseFrom > 0) {
+        const int nc2 = plan.coarseDirectionsPerFace;
+        const double coarse = 6.0 * nc2 * nc2 * plan.raysHigher * plan.raysHigher * (N / 8) * segmentsPerSlice(nc2) / rate;
+        plan.decisions.push_back({"coarse pass", format("%.0f directions per face on 1/8 of the voxels, %.3g of a fine pass",
+                                                        nc2, coarse / std::max(1e-30, plan.predictedSecondsPerFinePass)),
+                                  coarse});
+    }
+}
+
+}  // namespace
+
+SceneSummary summarizeScene(const Medium& m, const Lights& lights, const EnvBinning* binned, bool continuation) {
+    SceneSummary sc;
+    sc.dims[0] = m.nx;
+    sc.dims[1] = m.ny;
+    sc.dims[2] = m.nz;
+    sc.storedVoxels = m.voxelCount();
+    const double hmax = std::max(m.voxelSize.x, std::max(m.voxelSize.y, m.voxelSize.z));
+    for (float sg : m.sigmaT) sc.maxVoxelTau = std::max(sc.maxVoxelTau, double(sg) * hmax);
+    sc.g = m.g;
+    sc.albedo = m.albedo;
+    sc.continuation = continuation;
+    if (continuation) return sc;
+    sc.emission = m.hasEmission();
+    sc.environment = lights.env && lights.env->integral() > 0;
+    for (const Sun& sun : lights.suns) sc.suns += sun.irradiance.isBlack() ? 0 : 1;
+    if (binned && sc.environment) {
+        for (const Sun& sun : binned->hotSuns) sc.hotPixels += sun.irradiance.isBlack() ? 0 : 1;
+        sc.hotShare = binned->hotShare;
+    }
+    return sc;
+}
+
+std::string PlanDecision::text() const {
+    std::string t = why.empty() ? what : what + ": " + why;
+    if (predictedSeconds >= 0 || predictedBytes >= 0) {
+        t += " [predicted";
+        if (predictedSeconds >= 0) t += format(" %.3g s", predictedSeconds);
+        if (predictedBytes >= 0) t += format(" %.3g MiB", predictedBytes / (1 << 20));
+        t += "]";
+    }
+    return t;
+}
+
+std::vector<std::string> SolvePlan::lines() const {
+    std::vector<std::string> out;
+    for (const PlanDecision& d : decisions) out.push_back(d.text());
+    return out;
+}
+
+SolvePlan planSolve(const SceneSummary& input, const LpmSettings& s, int threads) {
+    SceneSummary scene = input;
+    SolvePlan plan;
+    planSubdivision(scene, s, plan);
+    planDeltaM(scene, s, plan);
+    planAngular(scene, s, plan);
+    planSourceShape(scene, s, plan);
+    planLights(scene, s, plan);
+    planResolution(scene, s, plan);
+    planAcceleration(s, plan);
+    planCost(scene, s, threads, plan);
+    return plan;
+}
+
+}  // namespace lpm

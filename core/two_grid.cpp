@@ -1,0 +1,100 @@
+// Two-grid continuation of the scattering orders (docs/multires.md). The remaining sum X of
+// sources solves X = B + K X (B = the current source, K one fine pass). A cycle restricts
+// the source r still to be distributed (first B) to the coarse grid, iterates the orders
+// there, and takes E = r + (coarse sum of the sources it propagated beyond r, injected
+// piecewise constant, which keeps its power) as the sum r gives rise to. One fine pass of
+// E deposits S at full resolution; its new residual r' = r + K E - E = K E - tail is what
+// the coarse grid got wrong, and the next cycle distributes it, until its power falls
+// below the tolerance (at most kCycles cycles).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "core/lpm_solve.h"
+#include "core/multires.h"
+#include "core/parallel.h"
+
+namespace lpm {
+
+namespace {
+
+/// The coarse grid's settings: the fine solve's bins (the restricted source is in them) and
+/// rays, the plan's coarse directions, GMRES earlier (coarse passes are cheap next to the
+/// fine ones and its Krylov vectors 1/8 the size).
+LpmSettings coarseSettings(const LpmSettings& s, const SolvePlan& plan, const std::shared_ptr<LpmCache>& cache) {
+    LpmSettings cs = s;
+    cs.multires = 0;
+    cs.deltaM = 0;  // the fine medium is already scaled
+    cs.cache = cache;
+    cs.binsPerFace = plan.binsPerFace;
+    cs.raysPerVoxel = cs.raysHigherOrders = plan.raysHigher;
+    cs.krylovAfter = std::min(s.krylovAfter, s.coarseKrylovAfter);
+    cs.directionsPerFace = plan.coarseDirectionsPerFace;
+    cs.sunTerms = false;
+    cs.validate();
+    return cs;
+}
+
+}  // namespace
+
+void LpmSolve::continueOnCoarse(int firstPass) {
+    constexpr int kCycles = 3;
+    const auto tp = Clock::now();
+    const Medium mc = coarsen(m_);
+    LpmSettings cs = coarseSettings(s_, plan_, cache_);
+    const SolvePlan coarsePlan = planSolve(summarizeScene(mc, Lights{}, nullptr, true), cs, maxThreads());
+    // Three source-sized buffers: r (also holds E during the fine pass), the tail (the
+    // source iteration's `unshot`, no longer needed) and next.
+    std::vector<float> r = next_;
+    std::vector<float>& tail = unshot_;
+    std::fill(tail.begin(), tail.end(), 0.0f);  // slopes of the tail stay 0
+    int cycles = 0, coarsePasses = 0, p = firstPass;
+    double rPower = res_.passes.back().scattered;
+    bool coarseConverged = true;
+    for (; cycles < kCycles && p < s_.maxOrders; ++cycles) {
+        const std::vector<float> uc = restrictSource(m_, mc, r, nb_, M_);
+        cs.maxOrders = std::max(1, s_.maxOrders - p);
+        cs.tolerance = std::fabs(rPower) > 0 ? s_.tolerance * res_.injected / std::fabs(rPower) : s_.tolerance;
+        const LpmResult cr = LpmSolve(mc, Lights{}, cs, coarsePlan, cache_, &uc).run();
+        for (size_t i = 1; i < cr.passes.size(); ++i) {
+            PassStats ps = cr.passes[i];
+            ps.pass = p++;
+            ps.coarse = true;
+            res_.passes.push_back(ps);
+        }
+        coarsePasses += int(cr.passes.size()) - 1;
+        coarseConverged = coarseConverged && cr.converged;
+        res_.segments += cr.segments;
+        if (cycles == 0)
+            for (const std::string& d : cr.decisions) res_.decisions.push_back("coarse grid: " + d);
+        // tail = coarse sources beyond r, at each fine voxel its coarse parent's value.
+        std::vector<float> tailCoarse = cr.sourceSum;
+        for (size_t i = 0; i < tailCoarse.size(); ++i) tailCoarse[i] -= uc[i];
+        injectCoarse(m_, mc, tailCoarse, nb_, M_, tail);
+        for (size_t i = 0; i < r.size(); ++i) r[i] += tail[i];  // r now holds E
+        const auto tf = Clock::now();
+        std::fill(next_.begin(), next_.end(), 0.0f);
+        Tally t;
+        runner_->run(sourceJobs(r), r_, t, true, next_);
+        recordPass(p++, t, tf);
+        for (size_t i = 0; i < r.size(); ++i) r[i] = next_[i] - tail[i];
+        rPower = sourcePower(r);
+        res_.passes.back().scattered = std::fabs(rPower);
+        if (std::fabs(rPower) <= s_.tolerance * res_.injected) {
+            ++cycles;
+            break;
+        }
+    }
+    res_.converged = coarseConverged && std::fabs(rPower) <= s_.tolerance * res_.injected;
+    char buf[300];
+    std::snprintf(buf, sizeof buf,
+                  "two-grid: coarse grid %dx%dx%d with %d directions per face, %d cycle(s) of coarse orders and "
+                  "one fine pass, %d coarse passes; source left %.3g of the input",
+                  mc.nx, mc.ny, mc.nz, cs.directionsPerFace, cycles, coarsePasses,
+                  res_.injected > 0 ? std::fabs(rPower) / res_.injected : 0.0);
+    if (s_.progress) s_.progress("two-grid: " + std::to_string(std::chrono::duration<double>(Clock::now() - tp).count()) + " s");
+    res_.decisions.push_back(buf);
+    continuedOnCoarse_ = true;
+}
+
+}  // namespace lpm

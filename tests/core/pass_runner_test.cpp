@@ -1,0 +1,82 @@
+// A propagation pass (core/pass_runner.h): the isotropic fold's fixed accumulators give the
+// general fold's result, and the sweep batches partition the jobs by axis and source.
+#include "core/pass_runner.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "core/job_factory.h"
+#include "core/lpm_cache.h"
+#include "test_scenes.h"
+
+using namespace lpm;
+using namespace lpm::test;
+
+namespace {
+
+struct PassOutput {
+    std::vector<float> sh, out;
+    Tally tally;
+};
+
+/// Pass 0 under a uniform sky, folded into `coeffs` SH coefficients and one isotropic bin.
+PassOutput runSkyPass(const Medium& m, int coeffs) {
+    LpmCache cache;
+    const CubeQuadrature quad(4);
+    const auto ff = cache.formFactors(4, 0, 0.0);
+    const JobFactory factory(quad, *ff, m.localToWorld, m.voxelVolume(), coeffs, 0.0);
+    const std::vector<RGB> sky(quad.count(), RGB(1.0f, 0.8f, 0.5f));
+    const std::vector<Job> jobs = factory.lightJobs(m, sky, true, {});
+    PassOutput o;
+    o.sh.assign(m.voxelCount() * coeffs * 3, 0.0f);
+    o.out.assign(m.voxelCount() * 3, 0.0f);
+    const std::vector<std::uint8_t> noSlopes;
+    const PassRunner runner(m, FoldShape{1, 1, coeffs}, noSlopes, o.sh);
+    EXPECT_EQ(runner.isotropic(jobs), coeffs == 1);
+    runner.run(jobs, 2, o.tally, true, o.out);
+    return o;
+}
+
+}  // namespace
+
+TEST(PassRunner, IsotropicFoldEqualsGeneralFold) {
+    const Medium m = makeVolume(VolumeKind::Cloud, 12, 3.0);
+    const PassOutput iso = runSkyPass(m, 1), general = runSkyPass(m, 4);
+    float peak = 0;
+    for (float v : general.out) peak = std::max(peak, v);
+    ASSERT_GT(peak, 0);
+    for (size_t v = 0; v < m.voxelCount(); ++v)
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_NEAR(iso.out[v * 3 + c], general.out[v * 3 + c], 1e-5 * peak) << v;
+            EXPECT_NEAR(iso.sh[v * 3 + c], general.sh[v * 12 + c], 1e-5 * peak) << v;
+        }
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(iso.tally.scattered[c], general.tally.scattered[c], 1e-5 * general.tally.scattered[c]);
+}
+
+TEST(PassRunner, BatchesPartitionJobsByAxisAndSource) {
+    const CubeQuadrature quad(4);
+    LpmCache cache;
+    const auto ff = cache.formFactors(4, 0, 0.0);
+    const JobFactory factory(quad, *ff, Mat3{}, 1.0, 1, 0.0);
+    std::vector<float> src(8 * 3, 1.0f);
+    std::vector<Job> jobs = factory.sourceJobs(src, 1, RGB(0.9f));
+    const std::vector<Job> more = factory.sourceJobs(src, 1, RGB(0.5f));  // another source scale
+    jobs.insert(jobs.end(), more.begin(), more.end());
+    const auto batches = sweepBatches(jobs, 2);
+    std::set<const Job*> seen;
+    for (const auto& b : batches) {
+        ASSERT_FALSE(b.empty());
+        for (const Job* j : b) {
+            EXPECT_TRUE(seen.insert(j).second) << "a job in two batches";
+            EXPECT_EQ(j->axis, b[0]->axis);
+            EXPECT_EQ(j->srcScale.r, b[0]->srcScale.r);
+        }
+        // Job order within a batch (thread-count independent sums).
+        for (size_t i = 1; i < b.size(); ++i) EXPECT_LT(b[i - 1], b[i]);
+    }
+    EXPECT_EQ(seen.size(), jobs.size());
+    EXPECT_EQ(batches.size(), 12u) << "3 axes x 2 sources x 2 halves";
+}

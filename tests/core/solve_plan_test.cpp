@@ -1,0 +1,248 @@
+// The effect planner (core/solve_plan.h): for every decision, a scene that triggers it;
+// and the cheap path it picks stays within the tolerance of forcing the expensive one.
+#include "core/solve_plan.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/lpm_solver.h"
+#include "test_scenes.h"
+
+using namespace lpm;
+using namespace lpm::test;
+
+namespace {
+
+SceneSummary smallScene() {
+    SceneSummary sc;
+    sc.dims[0] = sc.dims[1] = sc.dims[2] = 32;
+    sc.storedVoxels = 32 * 32 * 32;
+    sc.maxVoxelTau = 0.5;
+    sc.g = 0.0;
+    sc.albedo = RGB(0.9f);
+    sc.environment = true;
+    return sc;
+}
+
+bool says(const SolvePlan& p, const std::string& what) {
+    for (const std::string& l : p.lines())
+        if (l.find(what) != std::string::npos) return true;
+    return false;
+}
+
+/// Band-0 relative RMS difference between two results over voxels with S above 1% of the largest.
+double band0Difference(const LpmResult& a, const LpmResult& b) {
+    double peak = 0;
+    for (size_t v = 0; v < a.sh.size() / (3 * a.coeffs); ++v) peak = std::max(peak, double(a.sh[v * 3 * a.coeffs]));
+    double num = 0, den = 0;
+    for (size_t v = 0; v < a.sh.size() / (3 * a.coeffs); ++v)
+        for (int c = 0; c < 3; ++c) {
+            const double x = a.sh[v * 3 * a.coeffs + c], y = b.sh[v * 3 * b.coeffs + c];
+            if (x < 0.01 * peak) continue;
+            num += (x - y) * (x - y);
+            den += x * x;
+        }
+    return std::sqrt(num / den);
+}
+
+}  // namespace
+
+TEST(SolvePlan, IsotropicPhaseGivesShOrderZeroAndOneBin) {
+    const SolvePlan p = planSolve(smallScene(), LpmSettings{}, 2);
+    EXPECT_EQ(p.shOrder, 0);
+    EXPECT_EQ(p.binsPerFace, 0);
+    EXPECT_TRUE(says(p, "SH order 0: the phase function is isotropic"));
+    EXPECT_TRUE(says(p, "one isotropic unshot bin"));
+    SceneSummary fwd = smallScene();
+    fwd.g = 0.6;
+    const SolvePlan q = planSolve(fwd, LpmSettings{}, 2);
+    EXPECT_EQ(q.shOrder, 2);
+    EXPECT_EQ(q.binsPerFace, 2);
+    EXPECT_TRUE(says(q, "2x2 unshot bins per cube face"));
+}
+
+TEST(SolvePlan, LightPassesFollowTheLights) {
+    SceneSummary sc = smallScene();
+    SolvePlan p = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_TRUE(p.environmentPass);
+    EXPECT_FALSE(p.emissionPass);
+    EXPECT_EQ(p.sunPasses, 0);
+    EXPECT_TRUE(says(p, "no emission source: no emission grid"));
+    sc.environment = false;
+    sc.emission = true;
+    sc.suns = 2;
+    sc.hotPixels = 1;
+    sc.hotShare = 0.4;
+    p = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_FALSE(p.environmentPass);
+    EXPECT_TRUE(p.emissionPass);
+    EXPECT_EQ(p.sunPasses, 2);
+    EXPECT_EQ(p.hotPixelPasses, 1);
+    EXPECT_TRUE(says(p, "no environment pass"));
+    EXPECT_TRUE(says(p, "emission pass"));
+    EXPECT_TRUE(says(p, "hot pixels"));
+    EXPECT_TRUE(says(p, "2 sun(s) swept"));
+}
+
+TEST(SolvePlan, ThickVoxelsGetTheLinearSourceAndAWarning) {
+    SceneSummary sc = smallScene();
+    EXPECT_FALSE(planSolve(sc, LpmSettings{}, 2).linearSource);
+    sc.maxVoxelTau = 3.0;
+    const SolvePlan p = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_TRUE(p.linearSource);
+    EXPECT_TRUE(says(p, "linear source inside voxels: largest voxel optical depth 3 > 2"));
+    sc.maxVoxelTau = 20.0;
+    EXPECT_TRUE(says(planSolve(sc, LpmSettings{}, 2), "subdivide by 3"));
+    LpmSettings forced;
+    forced.linearSource = 0;
+    EXPECT_FALSE(planSolve(sc, forced, 2).linearSource);
+}
+
+TEST(SolvePlan, DeltaMOnlyForwardAndGrey) {
+    SceneSummary sc = smallScene();
+    sc.g = 0.8;
+    SolvePlan p = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_TRUE(p.deltaM);
+    EXPECT_NEAR(p.deltaMFraction, std::pow(0.8, 4), 1e-12);
+    EXPECT_NEAR(p.gPropagation, (0.8 - 0.4096) / (1 - 0.4096), 1e-12);
+    EXPECT_EQ(p.gOut, 0.8);
+    sc.albedo = RGB(0.9f, 0.8f, 0.7f);
+    p = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_FALSE(p.deltaM);
+    EXPECT_TRUE(says(p, "no delta-M: the albedo is not grey"));
+    sc.albedo = RGB(0.9f);
+    sc.g = -0.5;
+    EXPECT_FALSE(planSolve(sc, LpmSettings{}, 2).deltaM);
+}
+
+TEST(SolvePlan, LargeBlocksIterateHigherOrdersOnTheCoarseGrid) {
+    SceneSummary sc = smallScene();
+    sc.dims[0] = sc.dims[1] = sc.dims[2] = 64;
+    sc.storedVoxels = 64 * 64 * 64;
+    const SolvePlan big = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_EQ(big.coarseFrom, 2);
+    EXPECT_EQ(big.raysHigher, 1);
+    EXPECT_EQ(big.coarseDirectionsPerFace, 2);
+    EXPECT_TRUE(says(big, "multi-resolution: orders >= 2 on a 2x coarser grid"));
+    EXPECT_TRUE(says(big, "multiple scattering with 1 ray(s) per voxel (two-grid solve)"));
+    const SolvePlan small = planSolve(smallScene(), LpmSettings{}, 2);
+    EXPECT_EQ(small.coarseFrom, 0);
+    EXPECT_EQ(small.raysHigher, 2);
+    EXPECT_TRUE(says(small, "full resolution for every order"));
+    // The coarse grid of a two-grid solve plans no light passes, no SH, no delta-M.
+    sc.continuation = true;
+    sc.g = 0.8;
+    const SolvePlan coarse = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_EQ(coarse.coarseFrom, 0);
+    EXPECT_EQ(coarse.shOrder, 0);
+    EXPECT_FALSE(coarse.deltaM);
+    EXPECT_FALSE(coarse.environmentPass);
+}
+
+TEST(SolvePlan, PredictedCostScalesWithVoxelsRaysAndThreads) {
+    SceneSummary sc = smallScene();
+    const SolvePlan a = planSolve(sc, LpmSettings{}, 1);
+    sc.storedVoxels *= 2;
+    const SolvePlan b = planSolve(sc, LpmSettings{}, 1);
+    const SolvePlan c = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_GT(a.predictedSegmentsPerFinePass, 0);
+    EXPECT_NEAR(b.predictedSegmentsPerFinePass / a.predictedSegmentsPerFinePass, 2.0, 1e-9);
+    EXPECT_NEAR(b.predictedSecondsPerFinePass / c.predictedSecondsPerFinePass, 2.0, 1e-9);
+    // 96 directions, 4 rays per voxel, > 1 segment per voxel slice: at least 384 per voxel.
+    EXPECT_GT(a.predictedSegmentsPerFinePass, 384.0 * 32 * 32 * 32);
+    EXPECT_LT(a.predictedSegmentsPerFinePass, 3 * 384.0 * 32 * 32 * 32);
+}
+
+TEST(SolvePlan, SameInputsSamePlan) {
+    const SolvePlan a = planSolve(smallScene(), LpmSettings{}, 2), b = planSolve(smallScene(), LpmSettings{}, 2);
+    EXPECT_EQ(a.lines(), b.lines());
+}
+
+TEST(SolvePlan, SolveCarriesThePlanOutAndReportsIt) {
+    const Medium m = makeVolume(VolumeKind::Cloud, 16, 4.0);
+    const EnvMap sky = makeSky(64);
+    Lights lights;
+    lights.env = &sky;
+    const SolvePlan plan = planLpm(m, lights, LpmSettings{});
+    const LpmResult r = solveLpm(m, lights, LpmSettings{});
+    EXPECT_EQ(r.plan.lines(), plan.lines());
+    for (const std::string& line : plan.lines())
+        EXPECT_NE(std::find(r.decisions.begin(), r.decisions.end(), line), r.decisions.end()) << line;
+    EXPECT_EQ(r.shOrder, plan.shOrder);
+}
+
+TEST(SolvePlan, InvalidSettingsAreRefusedBeforePlanning) {
+    const Medium m = makeBox(4, 4, 4, 0.5);
+    LpmSettings s;
+    s.raysPerVoxel = 0;
+    EXPECT_THROW(planLpm(m, Lights{}, s), Error);
+    s = LpmSettings{};
+    s.binsPerFace = 3;  // does not divide 4 directions per face
+    EXPECT_THROW(planLpm(m, Lights{}, s), Error);
+}
+
+// The shortcuts against the expensive path they replace, on a heterogeneous 16^3 cloud
+// under a sky: each within the solve tolerance's reach (1e-3 of the injected power moves
+// band 0 by well under 1%) or, where discretisation changes, the bound states it.
+class ShortcutVsExpensive : public ::testing::Test {
+protected:
+    Medium m = makeVolume(VolumeKind::Cloud, 16, 4.0);
+    EnvMap sky = makeSky(64);
+    Lights lights;
+    void SetUp() override { lights.env = &sky; }
+};
+
+TEST_F(ShortcutVsExpensive, OneIsotropicBinAgainstTwentyFourBins) {
+    LpmSettings expensive;
+    expensive.binsPerFace = 2;
+    const LpmResult cheap = solveLpm(m, lights, LpmSettings{}), full = solveLpm(m, lights, expensive);
+    EXPECT_EQ(cheap.binCount, 1);
+    EXPECT_EQ(full.binCount, 24);
+    EXPECT_LT(band0Difference(full, cheap), 2e-3);
+}
+
+TEST_F(ShortcutVsExpensive, ShOrderZeroAgainstNearlyIsotropicShOrderTwo) {
+    Medium nearIso = m;
+    nearIso.g = 1e-6;  // takes the general path: SH order 2, 24 bins, delta-M on
+    const LpmResult cheap = solveLpm(m, lights, LpmSettings{}), full = solveLpm(nearIso, lights, LpmSettings{});
+    EXPECT_EQ(cheap.shOrder, 0);
+    EXPECT_EQ(full.shOrder, 2);
+    EXPECT_LT(band0Difference(full, cheap), 2e-3);
+    double higher = 0, band0 = 0;
+    for (size_t v = 0; v < full.sh.size() / 27; ++v) {
+        band0 = std::max(band0, std::fabs(double(full.sh[v * 27])));
+        for (int k = 3; k < 27; ++k) higher = std::max(higher, std::fabs(double(full.sh[v * 27 + k])));
+    }
+    EXPECT_LT(higher, 1e-4 * band0) << "bands 1-2 of a g = 1e-6 medium are g^l times the radiance's";
+}
+
+TEST_F(ShortcutVsExpensive, VoxelConstantSourceAgainstLinearInThinVoxels) {
+    LpmSettings expensive;
+    expensive.linearSource = 1;
+    const LpmResult cheap = solveLpm(m, lights, LpmSettings{}), full = solveLpm(m, lights, expensive);
+    EXPECT_FALSE(cheap.plan.linearSource);
+    EXPECT_TRUE(full.plan.linearSource);
+    // Voxel optical depths here stay below ~0.6: the two source shapes differ by O(tau^2).
+    EXPECT_LT(band0Difference(full, cheap), 1e-2);
+}
+
+TEST_F(ShortcutVsExpensive, OneRayForHigherOrdersAgainstTwo) {
+    LpmSettings cheapS;
+    cheapS.raysHigherOrders = 1;
+    const LpmResult cheap = solveLpm(m, lights, cheapS), full = solveLpm(m, lights, LpmSettings{});
+    EXPECT_EQ(cheap.plan.raysHigher, 1);
+    EXPECT_EQ(full.plan.raysHigher, 2);
+    EXPECT_LT(band0Difference(full, cheap), 1e-2);
+}
+
+TEST_F(ShortcutVsExpensive, NoEmissionPassWithoutEmission) {
+    // A zero emission grid is the expensive path of "no emission grid": same result.
+    Medium withGrid = m;
+    withGrid.emission.assign(withGrid.voxelCount(), RGB(0.f));
+    const LpmResult cheap = solveLpm(m, lights, LpmSettings{}), full = solveLpm(withGrid, lights, LpmSettings{});
+    EXPECT_FALSE(cheap.plan.emissionPass);
+    EXPECT_TRUE(full.plan.emissionPass);
+    EXPECT_LT(band0Difference(full, cheap), 1e-6);
+}
