@@ -1,4 +1,5 @@
 // `lpmbake IN.vdb ...`: read the density and lights, solve, write the bake (+ stats).
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -291,9 +292,12 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
     t = Clock::now();
     if (!vol.empty) {
         if (log.verbosity >= 2)
-            for (const std::string& line : planLpm(m, lights, settings).lines()) log.debug("plan: " + line);
+            for (const std::string& line : planLpm(m, lights, settings).lines(true)) log.debug("plan: " + line);
         res = solveLpm(m, lights, settings);
-        for (const auto& d : res.decisions) log.note("solver: " + d);
+        // With -v the plan was printed before the solve: after it, only what the solve met.
+        const std::vector<std::string> planned = log.verbosity >= 2 ? res.plan.lines() : std::vector<std::string>{};
+        for (const auto& d : res.decisions)
+            if (std::find(planned.begin(), planned.end(), d) == planned.end()) log.note("solver: " + d);
     } else {
         res.shOrder = o.g == 0.0 ? 0 : o.solver.shOrder;  // same rule as the solver
         res.coeffs = shCount(res.shOrder);

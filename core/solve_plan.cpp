@@ -117,7 +117,7 @@ void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan&
     if (tau > leakAbove)
         plan.decisions.push_back(
             {"warning", format("voxels up to optical depth %.3g across; above ~%g light leaks through them (measured "
-                               "in docs/accuracy.md): subdivide by %d to bring it near %g",
+                               "in docs/accuracy.md): subdivide by %.0f to bring it near %g",
                                tau, leakAbove, std::ceil(tau / leakAbove), leakAbove)});
 }
 
@@ -195,14 +195,16 @@ void planAcceleration(const LpmSettings& s, SolvePlan& plan) {
 
 /// Predicted segments, seconds and bytes, attached to the decisions that cause them.
 void planCost(const SceneSummary& scene, const LpmSettings& s, int threads, SolvePlan& plan) {
-    const double N = double(scene.storedVoxels), rate = kPlannedSegmentsPerSecondPerThread * std::max(1, threads);
     const int n = s.directionsPerFace, nd = 6 * n * n, M = plan.linearSource ? 4 : 1;
     const int nb = plan.binsPerFace == 0 ? 1 : 6 * plan.binsPerFace * plan.binsPerFace, nc = shCount(plan.shOrder);
+    const bool isotropicFold = M == 1 && nb == 1 && nc == 1;
+    const double N = double(scene.storedVoxels), perThread = isotropicFold ? kPlannedRateBatched
+                                                             : (M == 4 ? kPlannedRateLinearSource : kPlannedRateGeneralFold);
+    const double rate = perThread * std::max(1, threads);
     const double perSlice = segmentsPerSlice(n);
     plan.predictedSegmentsPerFinePass = nd * double(plan.raysHigher * plan.raysHigher) * N * perSlice;
     plan.predictedSecondsPerFinePass = plan.predictedSegmentsPerFinePass / rate;
     const double unshotBytes = 2 * N * nb * M * 3 * sizeof(float);
-    const bool isotropicFold = M == 1 && nb == 1 && nc == 1;
     const double foldBytes = (isotropicFold ? 6.0 : 16.0) * N * 3 * M * sizeof(float);
     const double shBytes = N * nc * 3 * sizeof(float);
     plan.predictedBytes = unshotBytes + foldBytes + shBytes + N * sizeof(float) * (scene.emission ? 4 : 1);
@@ -248,8 +250,10 @@ SceneSummary summarizeScene(const Medium& m, const Lights& lights, const EnvBinn
     return sc;
 }
 
-std::string PlanDecision::text() const {
-    std::string t = why.empty() ? what : what + ": " + why;
+std::string PlanDecision::text() const { return why.empty() ? what : what + ": " + why; }
+
+std::string PlanDecision::textWithCost() const {
+    std::string t = text();
     if (predictedSeconds >= 0 || predictedBytes >= 0) {
         t += " [predicted";
         if (predictedSeconds >= 0) t += format(" %.3g s", predictedSeconds);
@@ -259,9 +263,9 @@ std::string PlanDecision::text() const {
     return t;
 }
 
-std::vector<std::string> SolvePlan::lines() const {
+std::vector<std::string> SolvePlan::lines(bool withCost) const {
     std::vector<std::string> out;
-    for (const PlanDecision& d : decisions) out.push_back(d.text());
+    for (const PlanDecision& d : decisions) out.push_back(withCost ? d.textWithCost() : d.text());
     return out;
 }
 

@@ -44,7 +44,8 @@ struct PlanDecision {
     std::string why;                ///< e.g. "the phase function is isotropic (g = 0), ..."
     double predictedSeconds = -1;   ///< < 0: no time of its own
     double predictedBytes = -1;     ///< < 0: no memory of its own
-    std::string text() const;       ///< "what: why" plus the predicted cost
+    std::string text() const;          ///< "what: why" (the same for any thread count: it goes into the bake)
+    std::string textWithCost() const;  ///< text() plus the predicted cost, for -v
 };
 
 struct SolvePlan {
@@ -71,13 +72,18 @@ struct SolvePlan {
     double predictedBytes = 0;     ///< the solve's main buffers
     std::vector<PlanDecision> decisions;
 
-    std::vector<std::string> lines() const;
+    /// One line per decision (text(), or textWithCost()).
+    std::vector<std::string> lines(bool withCost = false) const;
 };
 
-/// Ray-segment updates per second and thread the planner's predictions assume: the
-/// batched sweep kernel's measured rate on this project's reference machine
-/// (docs/performance.md). Predictions are estimates; the stats JSON gives measurements beside them.
-constexpr double kPlannedSegmentsPerSecondPerThread = 1.5e8;
+/// Ray-segment updates per second and thread that the planner's time predictions assume,
+/// per kind of pass: the batched sweeps of the isotropic fold, per-direction sweeps with
+/// the general fold (bins and SH), and the linear-source reference kernel. Measured on this
+/// project's 2-core reference machine (docs/solve_plan.md); the stats JSON gives the
+/// measured time of the first fine pass beside the prediction.
+constexpr double kPlannedRateBatched = 2.5e8;
+constexpr double kPlannedRateGeneralFold = 1.5e7;
+constexpr double kPlannedRateLinearSource = 1.0e7;
 
 /// The plan for `scene` under `s` (s must be valid: LpmSettings::validate). Pure: the
 /// same inputs give the same plan. `threads` only scales the predicted seconds.

@@ -43,7 +43,9 @@ TEST(Subdivide, SameMediumOnFinerVoxels) {
             for (int x = 0; x < 32; ++x) {
                 const size_t c = m.index(x / 2, y / 2, z / 2), v = f.index(x, y, z);
                 ASSERT_EQ(c == Medium::npos, v == Medium::npos);
-                if (v != Medium::npos) ASSERT_EQ(f.sigmaT[v], m.sigmaT[c]);
+                if (v != Medium::npos) {
+                    ASSERT_EQ(f.sigmaT[v], m.sigmaT[c]);
+                }
             }
 }
 
