@@ -82,7 +82,7 @@ struct SolvePlan {
 /// project's 2-core reference machine (docs/solve_plan.md); the stats JSON gives the
 /// measured time of the first fine pass beside the prediction.
 constexpr double kPlannedRateBatched = 2.5e8;
-constexpr double kPlannedRateGeneralFold = 1.5e7;
+constexpr double kPlannedRateGeneralFold = 5.0e7;
 constexpr double kPlannedRateLinearSource = 1.0e7;
 
 /// The plan for `scene` under `s` (s must be valid: LpmSettings::validate). Pure: the

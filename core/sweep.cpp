@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <memory>
 
 #include "core/sweep.h"
@@ -371,6 +372,7 @@ public:
     // the voxel rows' spans (tile-granular); returns whether the layer holds any allocated tile.
     bool gather(int layer, const Job& srcJob) {
         bool any = false;
+        occupied_.clear();
         for (int tv = 0; tv < f_.tnv; ++tv) {
             int first, last;
             f_.rowExtent(layer, tv, first, last);
@@ -379,6 +381,7 @@ public:
             for (int cv = tv * K; cv < std::min(f_.nv, (tv + 1) * K); ++cv) {
                 spanLo_[cv] = lo;
                 spanHi_[cv] = hi;
+                if (lo < hi) occupied_.push_back(cv);
             }
             for (int tu = std::max(first, 0); first >= 0 && tu <= last; ++tu)
                 gatherTile(f_, srcJob, rows_.data(), P_.data(), layer, tu, tv);
@@ -396,17 +399,62 @@ public:
     float* data() { return P_.data(); }
     const int* spanLo() const { return spanLo_.data(); }
     const int* spanHi() const { return spanHi_.data(); }
+    /// The voxel rows of this layer with allocated tiles, in increasing order.
+    const std::vector<int>& occupied() const { return occupied_; }
 
 private:
     AxisFrame f_;
     std::vector<PlaneRow> rows_;  // per tile row, over all layers
     std::vector<float> P_;        // the current tile layer
     std::vector<int> spanLo_, spanHi_;  // per voxel row: columns in allocated tiles of this layer
+    std::vector<int> occupied_;         // voxel rows with spanLo < spanHi
+};
+
+// Storage for written ray rows, kept per thread across sweeps and passes: a row block is
+// touched once and then reused, so sweeps after the first cost no page faults. Blocks of
+// one size (3 W floats; W depends on the sweep axis) are pooled together; the pool keeps
+// at most kRowCacheBytes per thread and frees the rest.
+class RowBlockCache {
+public:
+    static constexpr size_t kRowCacheBytes = size_t(256) << 20;
+    static RowBlockCache& local() {
+        thread_local RowBlockCache cache;
+        return cache;
+    }
+    float* take(size_t floats) {
+        std::vector<float*>& free = free_[floats];
+        if (free.empty()) return new float[floats];
+        float* p = free.back();
+        free.pop_back();
+        bytes_ -= floats * sizeof(float);
+        return p;
+    }
+    void give(float* p, size_t floats) {
+        if (bytes_ + floats * sizeof(float) > kRowCacheBytes) {
+            delete[] p;
+            return;
+        }
+        free_[floats].push_back(p);
+        bytes_ += floats * sizeof(float);
+    }
+    ~RowBlockCache() {
+        for (auto& kv : free_)
+            for (float* p : kv.second) delete[] p;
+    }
+
+private:
+    std::map<size_t, std::vector<float*>> free_;
+    size_t bytes_ = 0;
 };
 
 // The state of one sweep: rays, the planes of the current tile layer (its own, or a
-// batch's) and the tallies. Rays: row (cell v, class) at (cellV r^2 + class) 3 nuPad,
-// lane = column (a u crossing shifts the row), columns >= nu are padding.
+// batch's) and the tallies. Rays: ray row (cell v, class) is row index cellV r^2 + class.
+// A pristine row has no storage; a written one has a block of 3 channels of W = 2 nuPad
+// lanes, column c of channel k at lane k W + base + c: a u crossing moves the row's base
+// by one lane instead of moving its data, and the row is re-centred once the base runs
+// out of slack (every nuPad crossings). Only the columns the kernel has touched are kept
+// (vlo..vhi): the other rays hold the boundary radiance, so a row costs what the density
+// it meets is wide, not what the block is. Lanes beyond column nu - 1 are padding.
 class StepSweep {
 public:
     static constexpr int K = Medium::kTile;
@@ -415,14 +463,21 @@ public:
     // weight A_perp w, and scattered by the batch); null: the sweep's own.
     StepSweep(const Medium& m, const Job& job, int r, float depositScale, LayerPlanes* shared = nullptr)
         : m_(m), job_(job), g_(m, job, r), f_(m, job.axis), depositScale_(depositScale) {
-        const size_t nuPad = size_t(f_.tnu) * K;
-        rowStride_ = 3 * nuPad;
+        nuPad_ = size_t(f_.tnu) * K;
+        W_ = 2 * nuPad_;
         rows_count_ = size_t(r) * r * g_.nv;
-        // Uninitialised: a ray row is written only when it first meets allocated voxels
-        // (pristine_), so the rays of empty space cost neither memory traffic nor pages.
-        L_.reset(new float[rows_count_ * rowStride_]);
+        // A ray row gets storage only when it first meets allocated voxels (pristine_), so
+        // the rays of empty space cost neither memory traffic nor pages.
+        block_.assign(rows_count_, nullptr);
+        base_.assign(rows_count_, 0);
+        vlo_.assign(rows_count_, 0);
+        vhi_.assign(rows_count_, 0);
         pristine_.assign(rows_count_, 1);
-        pending_.assign(size_t(r) * r * g_.nv, 0);
+        pending_.assign(rows_count_, 0);
+        seenU_.assign(rows_count_, 0);
+        mark_.assign(rows_count_, 0);
+        classU_.assign(size_t(r) * r, 0);
+        uCount_.assign(size_t(r) * r, 0);
         for (int c = 0; c < 3; ++c) {
             bnd_[c] = job.boundary[c];
             inj_[c] = double(bnd_[c]) * double(size_t(r) * r * g_.nu * g_.nv);  // padding lanes excluded
@@ -437,6 +492,15 @@ public:
             stV_[j].f = (j + job.offsetV) / r;
         }
     }
+
+    ~StepSweep() {
+        RowBlockCache& cache = RowBlockCache::local();
+        for (float* b : block_)
+            if (b) cache.give(b, 3 * W_);
+        for (float* b : spare_) cache.give(b, 3 * W_);
+    }
+    StepSweep(const StepSweep&) = delete;
+    StepSweep& operator=(const StepSweep&) = delete;
 
     // A sweep with its own planes: every layer gathered, swept and scattered to phi.
     void run(float* phi, Tally& tally) {
@@ -462,14 +526,10 @@ public:
 
     // After the last layer: the rays still in the block escape; adds this sweep's tally.
     void finish(Tally& tally) {
-        const size_t nuPad = rowStride_ / 3;
-        for (size_t row = 0; row < rows_count_ * rowStride_; row += rowStride_) {
+        for (size_t row = 0; row < rows_count_; ++row) {
+            syncPending(row, 0);
             applyShift(row);
-            if (pristine_[row / rowStride_])
-                for (int c = 0; c < 3; ++c) esc_[c] += double(bnd_[c]) * g_.nu;
-            else
-                for (int c = 0; c < 3; ++c)
-                    for (int i = 0; i < g_.nu; ++i) esc_[c] += L_[row + c * nuPad + size_t(i)];
+            tallyRowEscape(row);
         }
         const double k = g_.aPerp * job_.weight, V = m_.voxelVolume();
         const double alb[3] = {m_.albedo.r, m_.albedo.g, m_.albedo.b};
@@ -495,80 +555,170 @@ private:
         for (int jv = 0; jv < r; ++jv)
             for (int ju = 0; ju < r; ++ju) mergeEvents(lamU_[ju], lamV_[jv], g_.sliceLen, ev_[size_t(jv * r + ju)]);
         slice_ = ia % K;
-        if (!any) {
-            for (int cls = 0; cls < r * r; ++cls) crossEmptySlice(cls, SV_[cls / r], ev_[size_t(cls)]);
-            return;
+        const int rr = r * r;
+        for (int cls = 0; cls < rr; ++cls) {
+            uCount_[cls] = 0;
+            for (const Event& e : ev_[size_t(cls)]) uCount_[cls] += e.kind == 1;
         }
-        for (int cellV = 0; cellV < g_.nv; ++cellV)
-            for (int cls = 0; cls < r * r; ++cls) {
-                const size_t row = (size_t(cellV) * r * r + size_t(cls)) * rowStride_;
-                processRow(row, cellV, SV_[cls / r], ev_[size_t(cls)], any);
-            }
+        ++stamp_;
+        if (any) sweepOccupiedRows();
+        for (int cls = 0; cls < rr; ++cls) crossUntouchedRows(cls, SV_[cls / r], ev_[size_t(cls)]);
+        for (int cls = 0; cls < rr; ++cls) classU_[cls] += uCount_[cls];
     }
 
-    // A slice of an empty tile layer: rays cross it unchanged, so only processRow's
-    // bookkeeping is left, done for all rows of a class at once, in event order: a u
-    // crossing adds a pending column shift to every row; a v crossing moves every row one
-    // voxel row on, and the one row at the block's edge leaves it (its rays re-enter with
-    // the boundary radiance). SV: the class's row shift at slice start.
-    void crossEmptySlice(int cls, int SV, const std::vector<Event>& ev) {
+    // The ray rows that meet allocated voxel rows in this slice, in row order (cell v
+    // outer, class inner, as a sweep over every row would take them: the deposits add up
+    // in the same order): a row is such a candidate when one of the voxel rows it lies in
+    // during the slice (its start row and the ones its v crossings take it to) is occupied.
+    void sweepOccupiedRows() {
+        const int r = g_.r, rr = r * r, nv = g_.nv;
+        cand_.clear();
+        for (int cls = 0; cls < rr; ++cls) {
+            int shift = SV_[cls / r];
+            int shifts[8], ns = 0;
+            shifts[ns++] = shift;
+            for (const Event& e : ev_[size_t(cls)])
+                if (e.kind == 2 && ns < 8) shifts[ns++] = shift = wrap(shift + g_.sv, nv);
+            for (int vr : planes_->occupied())
+                for (int k = 0; k < ns; ++k) {
+                    const size_t row = size_t(wrap(vr - shifts[k], nv)) * rr + size_t(cls);
+                    if (mark_[row] != stamp_) {
+                        mark_[row] = stamp_;
+                        cand_.push_back(row);
+                    }
+                }
+        }
+        std::sort(cand_.begin(), cand_.end());
+        for (size_t row : cand_) {
+            const int cls = int(row % size_t(rr)), cellV = int(row / size_t(rr));
+            syncPending(row, 0);
+            processRow(row, cellV, SV_[cls / r], ev_[size_t(cls)], true);
+            seenU_[row] = classU_[cls] + uCount_[cls];  // this slice's u crossings are applied
+        }
+    }
+
+    // The rows of a class that meet no allocated voxels in this slice (every row of an
+    // empty layer): rays cross unchanged, so only the bookkeeping is left, done for the
+    // whole class at once, in event order: a u crossing adds to the class's count of
+    // pending column shifts (each row takes its share lazily, syncPending); a v crossing
+    // moves every row one voxel row on, and the one row at the block's edge leaves it (its
+    // rays re-enter with the boundary radiance). SV: the class's row shift at slice start.
+    void crossUntouchedRows(int cls, int SV, const std::vector<Event>& ev) {
         const int nv = g_.nv, rr = g_.r * g_.r;
         const int edge = g_.sv > 0 ? nv - 1 : 0;
-        int shift = SV;  // row cellV lies in voxel row (cellV + shift) mod nv
+        int shift = SV, uSoFar = 0;  // row cellV lies in voxel row (cellV + shift) mod nv
         for (const Event& e : ev) {
             if (e.kind == 1) {
-                for (int cellV = 0; cellV < nv; ++cellV) ++pending_[size_t(cellV) * rr + size_t(cls)];
+                ++uSoFar;
             } else if (e.kind == 2) {
-                const size_t row = (size_t(wrap(edge - shift, nv)) * rr + size_t(cls)) * rowStride_;
-                leaveRow(row);
+                const size_t row = size_t(wrap(edge - shift, nv)) * rr + size_t(cls);
+                if (mark_[row] != stamp_) {  // a candidate left in processRow
+                    syncPending(row, uSoFar);
+                    leaveRow(row);
+                }
                 shift = wrap(shift + g_.sv, nv);
             }
         }
     }
 
+    // Brings a row's pending column shifts up to date: the u crossings its class made
+    // since the row last took its share, plus `extra` of the current slice.
+    void syncPending(size_t row, int extra) {
+        const int cls = int(row % uCount_.size()), now = classU_[cls] + extra;
+        pending_[row] += now - seenU_[row];
+        seenU_[row] = now;
+    }
+
+    // Channel c of a written ray row, from column 0 on.
+    float* lanes(size_t row, int c) { return block_[row] + size_t(c) * W_ + size_t(base_[row]); }
+
+    // Ray i's radiance in channel c of a written row: its lane inside the row's valid
+    // columns, the boundary radiance outside them.
+    float ray(size_t row, int c, int i) { return i >= vlo_[row] && i < vhi_[row] ? lanes(row, c)[i] : bnd_[c]; }
+
+    // Escaped radiance of every ray of a row, summed in column order (pristine: nu bnd).
+    void tallyRowEscape(size_t row) {
+        for (int c = 0; c < 3; ++c) {
+            if (pristine_[row]) {
+                esc_[c] += double(bnd_[c]) * g_.nu;
+                continue;
+            }
+            for (int i = 0; i < g_.nu; ++i) esc_[c] += ray(row, c, i);
+        }
+    }
+
     // A pristine ray row (every ray holding the boundary radiance, never written) gets its
-    // values before it meets allocated voxels.
+    // storage before it meets allocated voxels; its valid columns start empty.
     void materialize(size_t row) {
-        std::uint8_t& p = pristine_[row / rowStride_];
+        std::uint8_t& p = pristine_[row];
         if (!p) return;
-        const size_t nuPad = rowStride_ / 3;
-        for (int c = 0; c < 3; ++c) std::fill_n(&L_[row + c * nuPad], nuPad, bnd_[c]);
+        float* b = nullptr;
+        if (!spare_.empty()) {
+            b = spare_.back();
+            spare_.pop_back();
+        } else {
+            b = RowBlockCache::local().take(3 * W_);
+        }
+        block_[row] = b;
+        base_[row] = g_.su > 0 ? int(nuPad_) : 0;  // the slack lies on the side the base moves to
+        vlo_[row] = vhi_[row] = 0;
         p = 0;
     }
 
+    // Makes lanes [lo, end) of a written row hold its rays, for the kernel: columns outside
+    // the valid ones get the boundary radiance and join them; padding lanes (>= nu) get it too.
+    void validate(size_t row, int lo, int end) {
+        int& a = vlo_[row];
+        int& b = vhi_[row];
+        const int hi = std::min(end, g_.nu);
+        for (int c = 0; c < 3; ++c) {
+            float* L = lanes(row, c);
+            if (a >= b) std::fill(L + lo, L + hi, bnd_[c]);
+            else {
+                if (lo < a) std::fill(L + lo, L + a, bnd_[c]);
+                if (hi > b) std::fill(L + b, L + hi, bnd_[c]);
+            }
+            if (end > g_.nu) std::fill(L + g_.nu, L + end, bnd_[c]);
+        }
+        if (a >= b) a = lo, b = hi;
+        else a = std::min(a, lo), b = std::max(b, hi);
+    }
+
     // The whole row leaves the block through a v face: every ray is tallied as escaped and
-    // re-enters with the boundary radiance, which leaves the row pristine.
+    // re-enters with the boundary radiance, which leaves the row pristine (its storage
+    // goes back to this sweep's spares).
     void leaveRow(size_t row) {
         applyShift(row);
-        std::uint8_t& p = pristine_[row / rowStride_];
-        const size_t nuPad = rowStride_ / 3;
-        for (int c = 0; c < 3; ++c) {
-            if (p) esc_[c] += double(bnd_[c]) * g_.nu;
-            else
-                for (int i = 0; i < g_.nu; ++i) esc_[c] += L_[row + c * nuPad + size_t(i)];
-            inj_[c] += double(bnd_[c]) * g_.nu;
+        tallyRowEscape(row);
+        for (int c = 0; c < 3; ++c) inj_[c] += double(bnd_[c]) * g_.nu;
+        if (!pristine_[row]) {
+            spare_.push_back(block_[row]);
+            block_[row] = nullptr;
         }
-        p = 1;
+        pristine_[row] = 1;
     }
 
-    // Ray `lane` of ray row `row` leaves the block: tallied as escaped, replaced by the boundary.
-    void resetRay(size_t row, int lane) {
-        const size_t nuPad = rowStride_ / 3;
+    // Moves the valid columns of a written row to the start of its slack: base nuPad when
+    // the base moves down (su > 0), 0 when it moves up.
+    void recentre(size_t row) {
+        const int to = g_.su > 0 ? int(nuPad_) : 0, from = base_[row];
+        const int a = vlo_[row], n = std::max(0, vhi_[row] - a);
         for (int c = 0; c < 3; ++c) {
-            float& L = L_[row + c * nuPad + size_t(lane)];
-            esc_[c] += L;
-            L = bnd_[c];
-            inj_[c] += bnd_[c];
+            float* b = block_[row] + size_t(c) * W_;
+            std::memmove(b + to + a, b + from + a, size_t(n) * sizeof(float));
         }
+        base_[row] = to;
     }
 
-    // The u crossings of a row of rays kept in column order, applied lazily: every ray
-    // moves `pending` columns (sign of du), the ones leaving the block re-enter at the
+    // The u crossings of a row of rays, applied lazily: every ray moves `pending` columns
+    // (sign of du), the ones leaving the block are tallied as escaped and re-enter at the
     // opposite face with the boundary radiance. Deferred while the row crosses empty voxel
-    // rows (nothing else changes its rays there), so empty space costs no data movement.
+    // rows (nothing else changes its rays there), so empty space costs no data movement;
+    // a shift moves the row's base and its valid columns, not its data, and the entering
+    // rays hold the boundary radiance by lying outside the valid columns: O(crossings).
     void applyShift(size_t row) {
-        int& k = pending_[row / rowStride_];
-        if (k > 0 && pristine_[row / rowStride_]) {  // every ray holds bnd: k leave, k re-enter
+        int& k = pending_[row];
+        if (k > 0 && pristine_[row]) {  // every ray holds bnd: k leave, k re-enter
             for (int c = 0; c < 3; ++c) {
                 esc_[c] += double(bnd_[c]) * k;
                 inj_[c] += double(bnd_[c]) * k;
@@ -576,16 +726,28 @@ private:
             k = 0;
         }
         const int nu = g_.nu;
-        const size_t nuPad = rowStride_ / 3;
         while (k > 0) {
             const int step = std::min(k, nu);
-            for (int i = 0; i < step; ++i) resetRay(row, g_.su > 0 ? nu - 1 - i : i);
-            for (int c = 0; c < 3; ++c) {
-                float* L = &L_[row + c * nuPad];
-                if (g_.su > 0)
-                    std::rotate(L, L + (nu - step), L + nu);
-                else
-                    std::rotate(L, L + step, L + nu);
+            for (int i = 0; i < step; ++i) {  // the leaving rays, in the order of the reference
+                const int col = g_.su > 0 ? nu - 1 - i : i;
+                for (int c = 0; c < 3; ++c) {
+                    esc_[c] += ray(row, c, col);
+                    inj_[c] += bnd_[c];
+                }
+            }
+            int& b = base_[row];
+            int& lo = vlo_[row];
+            int& hi = vhi_[row];
+            if (g_.su > 0) {
+                if (b < step) recentre(row);
+                b -= step;  // column c is now column c + step
+                lo = std::min(lo + step, nu);
+                hi = std::min(hi + step, nu);
+            } else {
+                if (b + step > int(nuPad_)) recentre(row);
+                b += step;  // column c is now column c - step
+                lo = std::max(lo - step, 0);
+                hi = std::max(hi - step, 0);
             }
             k -= step;
         }
@@ -599,7 +761,7 @@ private:
         if (vr >= nv) vr -= nv;
         for (const Event& e : ev) {
             if (e.kind == 1) {
-                ++pending_[row / rowStride_];
+                ++pending_[row];
                 continue;
             }
             if (e.kind == 2) {  // the whole row moves to the next voxel row, or leaves the block
@@ -615,11 +777,12 @@ private:
             materialize(row);
             // lo is tile-aligned; hi rounds up into the padding columns (sigma = 0 there).
             const int chunks = (hi - lo + K - 1) / K;
+            validate(row, lo, lo + chunks * K);
             float* plane = &planes_->data()[planeIndex(planes_->rows(), vr, slice_, lo)];
             if (job_.src)
-                segmentChunks<true>(chunks, float(e.len), dk_, plane, &L_[row + size_t(lo)], rowStride_ / 3);
+                segmentChunks<true>(chunks, float(e.len), dk_, plane, lanes(row, 0) + lo, W_);
             else
-                segmentChunks<false>(chunks, float(e.len), dk_, plane, &L_[row + size_t(lo)], rowStride_ / 3);
+                segmentChunks<false>(chunks, float(e.len), dk_, plane, lanes(row, 0) + lo, W_);
             segs_ += std::uint64_t(hi - lo);
         }
     }
@@ -633,11 +796,21 @@ private:
     LayerPlanes* planes_ = nullptr;     // the planes swept through (own or a batch's)
     float dk_ = 1.0f;  // deposit factor in the kernel
     int slice_ = 0;
-    size_t rowStride_ = 0;
+    size_t nuPad_ = 0;                 // columns of the planes (nu rounded up to tiles)
+    size_t W_ = 0;                     // lanes per channel of a row block: 2 nuPad
     size_t rows_count_ = 0;            // ray rows
-    std::unique_ptr<float[]> L_;       // ray radiance, valid in rows that are not pristine
-    std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (L_ not written)
-    std::vector<int> pending_;  // per ray row: u crossings not yet applied
+    std::vector<float*> block_;        // per ray row: its storage (null while pristine)
+    std::vector<int> base_;            // per ray row: the lane of column 0 in each channel
+    std::vector<int> vlo_, vhi_;       // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
+    std::vector<float*> spare_;        // blocks of rows that left the block, for reuse
+    std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)
+    std::vector<int> pending_;  // per ray row: u crossings not yet applied (besides its class's, below)
+    std::vector<int> seenU_;    // per ray row: its class's u-crossing count when it last synced
+    std::vector<int> classU_;   // per class: u crossings before the current slice
+    std::vector<int> uCount_;   // per class: u crossings in the current slice
+    std::vector<std::uint32_t> mark_;  // per ray row: stamp_ when a candidate of the current slice
+    std::uint32_t stamp_ = 0;
+    std::vector<size_t> cand_;  // the current slice's candidate rows
     std::vector<ClassState> stU_, stV_;
     std::vector<double> lamU_[16], lamV_[16];  // this slice's crossings per class (r <= 16)
     int SV_[16] = {};
