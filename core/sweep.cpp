@@ -449,12 +449,12 @@ private:
 
 // The state of one sweep: rays, the planes of the current tile layer (its own, or a
 // batch's) and the tallies. Rays: ray row (cell v, class) is row index cellV r^2 + class.
-// A pristine row has no storage; a written one has a block of 3 channels of W = 2 nuPad
-// lanes, column c of channel k at lane k W + base + c: a u crossing moves the row's base
-// by one lane instead of moving its data, and the row is re-centred once the base runs
-// out of slack (every nuPad crossings). Only the columns the kernel has touched are kept
-// (vlo..vhi): the other rays hold the boundary radiance, so a row costs what the density
-// it meets is wide, not what the block is. Lanes beyond column nu - 1 are padding.
+// A pristine row has no storage. A written row keeps only the columns the kernel has
+// touched (vlo .. vhi - 1; the other rays hold the boundary radiance) in a window of cap
+// columns starting at column org, 3 channels of cap lanes: a u crossing moves the window
+// (org) with the rays instead of moving data, and the window grows (a new power-of-two
+// block) only when the kernel needs columns outside it. So a row costs what the density
+// it meets is wide, not what the block is. Columns >= nu are padding.
 class StepSweep {
 public:
     static constexpr int K = Medium::kTile;
@@ -463,13 +463,12 @@ public:
     // weight A_perp w, and scattered by the batch); null: the sweep's own.
     StepSweep(const Medium& m, const Job& job, int r, float depositScale, LayerPlanes* shared = nullptr)
         : m_(m), job_(job), g_(m, job, r), f_(m, job.axis), depositScale_(depositScale) {
-        nuPad_ = size_t(f_.tnu) * K;
-        W_ = 2 * nuPad_;
         rows_count_ = size_t(r) * r * g_.nv;
         // A ray row gets storage only when it first meets allocated voxels (pristine_), so
         // the rays of empty space cost neither memory traffic nor pages.
         block_.assign(rows_count_, nullptr);
-        base_.assign(rows_count_, 0);
+        org_.assign(rows_count_, 0);
+        cap_.assign(rows_count_, 0);
         vlo_.assign(rows_count_, 0);
         vhi_.assign(rows_count_, 0);
         pristine_.assign(rows_count_, 1);
@@ -495,9 +494,8 @@ public:
 
     ~StepSweep() {
         RowBlockCache& cache = RowBlockCache::local();
-        for (float* b : block_)
-            if (b) cache.give(b, 3 * W_);
-        for (float* b : spare_) cache.give(b, 3 * W_);
+        for (size_t row = 0; row < rows_count_; ++row)
+            if (block_[row]) cache.give(block_[row], 3 * size_t(cap_[row]));
     }
     StepSweep(const StepSweep&) = delete;
     StepSweep& operator=(const StepSweep&) = delete;
@@ -629,12 +627,14 @@ private:
         seenU_[row] = now;
     }
 
-    // Channel c of a written ray row, from column 0 on.
-    float* lanes(size_t row, int c) { return block_[row] + size_t(c) * W_ + size_t(base_[row]); }
+    // Channel c, column col of a written ray row (col inside its window).
+    float* at(size_t row, int c, int col) {
+        return block_[row] + size_t(c) * size_t(cap_[row]) + size_t(col - org_[row]);
+    }
 
     // Ray i's radiance in channel c of a written row: its lane inside the row's valid
     // columns, the boundary radiance outside them.
-    float ray(size_t row, int c, int i) { return i >= vlo_[row] && i < vhi_[row] ? lanes(row, c)[i] : bnd_[c]; }
+    float ray(size_t row, int c, int i) { return i >= vlo_[row] && i < vhi_[row] ? *at(row, c, i) : bnd_[c]; }
 
     // Escaped radiance of every ray of a row, summed in column order (pristine: nu bnd).
     void tallyRowEscape(size_t row) {
@@ -647,38 +647,41 @@ private:
         }
     }
 
-    // A pristine ray row (every ray holding the boundary radiance, never written) gets its
-    // storage before it meets allocated voxels; its valid columns start empty.
+    // A pristine ray row (every ray holding the boundary radiance, never written) becomes
+    // written before it meets allocated voxels; its valid columns start empty.
     void materialize(size_t row) {
         std::uint8_t& p = pristine_[row];
         if (!p) return;
-        float* b = nullptr;
-        if (!spare_.empty()) {
-            b = spare_.back();
-            spare_.pop_back();
-        } else {
-            b = RowBlockCache::local().take(3 * W_);
-        }
-        block_[row] = b;
-        base_[row] = g_.su > 0 ? int(nuPad_) : 0;  // the slack lies on the side the base moves to
         vlo_[row] = vhi_[row] = 0;
         p = 0;
     }
 
-    // Makes lanes [lo, end) of a written row hold its rays, for the kernel: columns outside
-    // the valid ones get the boundary radiance and join them; padding lanes (>= nu) get it too.
+    // Makes lanes [lo, end) of a written row hold its rays, for the kernel: the row's
+    // window grows to cover them (a power-of-two block from the thread's cache), columns
+    // outside the valid ones get the boundary radiance and join them; padding columns
+    // (>= nu) get it too.
     void validate(size_t row, int lo, int end) {
         int& a = vlo_[row];
         int& b = vhi_[row];
+        const int needLo = a >= b ? lo : std::min(a, lo), needHi = a >= b ? end : std::max(b, end);
+        if (!block_[row] || needLo < org_[row] || needHi > org_[row] + cap_[row]) {
+            int cap = 64;
+            while (cap < needHi - needLo) cap *= 2;
+            float* nb = RowBlockCache::local().take(3 * size_t(cap));
+            for (int c = 0; c < 3 && a < b; ++c) std::memcpy(nb + size_t(c) * cap + (a - needLo), at(row, c, a), size_t(b - a) * sizeof(float));
+            if (block_[row]) RowBlockCache::local().give(block_[row], 3 * size_t(cap_[row]));
+            block_[row] = nb;
+            cap_[row] = cap;
+            org_[row] = needLo;
+        }
         const int hi = std::min(end, g_.nu);
         for (int c = 0; c < 3; ++c) {
-            float* L = lanes(row, c);
-            if (a >= b) std::fill(L + lo, L + hi, bnd_[c]);
+            if (a >= b) std::fill(at(row, c, lo), at(row, c, lo) + std::max(0, hi - lo), bnd_[c]);
             else {
-                if (lo < a) std::fill(L + lo, L + a, bnd_[c]);
-                if (hi > b) std::fill(L + b, L + hi, bnd_[c]);
+                if (lo < a) std::fill(at(row, c, lo), at(row, c, a), bnd_[c]);
+                if (hi > b) std::fill(at(row, c, b), at(row, c, b) + (hi - b), bnd_[c]);
             }
-            if (end > g_.nu) std::fill(L + g_.nu, L + end, bnd_[c]);
+            if (end > g_.nu) std::fill(at(row, c, g_.nu), at(row, c, g_.nu) + (end - g_.nu), bnd_[c]);
         }
         if (a >= b) a = lo, b = hi;
         else a = std::min(a, lo), b = std::max(b, hi);
@@ -686,35 +689,23 @@ private:
 
     // The whole row leaves the block through a v face: every ray is tallied as escaped and
     // re-enters with the boundary radiance, which leaves the row pristine (its storage
-    // goes back to this sweep's spares).
+    // goes back to the thread's cache).
     void leaveRow(size_t row) {
         applyShift(row);
         tallyRowEscape(row);
         for (int c = 0; c < 3; ++c) inj_[c] += double(bnd_[c]) * g_.nu;
-        if (!pristine_[row]) {
-            spare_.push_back(block_[row]);
+        if (block_[row]) {
+            RowBlockCache::local().give(block_[row], 3 * size_t(cap_[row]));
             block_[row] = nullptr;
         }
         pristine_[row] = 1;
-    }
-
-    // Moves the valid columns of a written row to the start of its slack: base nuPad when
-    // the base moves down (su > 0), 0 when it moves up.
-    void recentre(size_t row) {
-        const int to = g_.su > 0 ? int(nuPad_) : 0, from = base_[row];
-        const int a = vlo_[row], n = std::max(0, vhi_[row] - a);
-        for (int c = 0; c < 3; ++c) {
-            float* b = block_[row] + size_t(c) * W_;
-            std::memmove(b + to + a, b + from + a, size_t(n) * sizeof(float));
-        }
-        base_[row] = to;
     }
 
     // The u crossings of a row of rays, applied lazily: every ray moves `pending` columns
     // (sign of du), the ones leaving the block are tallied as escaped and re-enter at the
     // opposite face with the boundary radiance. Deferred while the row crosses empty voxel
     // rows (nothing else changes its rays there), so empty space costs no data movement;
-    // a shift moves the row's base and its valid columns, not its data, and the entering
+    // a shift moves the row's window and valid columns, not its data, and the entering
     // rays hold the boundary radiance by lying outside the valid columns: O(crossings).
     void applyShift(size_t row) {
         int& k = pending_[row];
@@ -735,17 +726,14 @@ private:
                     inj_[c] += bnd_[c];
                 }
             }
-            int& b = base_[row];
             int& lo = vlo_[row];
             int& hi = vhi_[row];
-            if (g_.su > 0) {
-                if (b < step) recentre(row);
-                b -= step;  // column c is now column c + step
+            if (g_.su > 0) {  // column c is now column c + step
+                org_[row] += step;
                 lo = std::min(lo + step, nu);
                 hi = std::min(hi + step, nu);
-            } else {
-                if (b + step > int(nuPad_)) recentre(row);
-                b += step;  // column c is now column c - step
+            } else {  // column c is now column c - step
+                org_[row] -= step;
                 lo = std::max(lo - step, 0);
                 hi = std::max(hi - step, 0);
             }
@@ -780,9 +768,9 @@ private:
             validate(row, lo, lo + chunks * K);
             float* plane = &planes_->data()[planeIndex(planes_->rows(), vr, slice_, lo)];
             if (job_.src)
-                segmentChunks<true>(chunks, float(e.len), dk_, plane, lanes(row, 0) + lo, W_);
+                segmentChunks<true>(chunks, float(e.len), dk_, plane, at(row, 0, lo), size_t(cap_[row]));
             else
-                segmentChunks<false>(chunks, float(e.len), dk_, plane, lanes(row, 0) + lo, W_);
+                segmentChunks<false>(chunks, float(e.len), dk_, plane, at(row, 0, lo), size_t(cap_[row]));
             segs_ += std::uint64_t(hi - lo);
         }
     }
@@ -796,13 +784,10 @@ private:
     LayerPlanes* planes_ = nullptr;     // the planes swept through (own or a batch's)
     float dk_ = 1.0f;  // deposit factor in the kernel
     int slice_ = 0;
-    size_t nuPad_ = 0;                 // columns of the planes (nu rounded up to tiles)
-    size_t W_ = 0;                     // lanes per channel of a row block: 2 nuPad
     size_t rows_count_ = 0;            // ray rows
     std::vector<float*> block_;        // per ray row: its storage (null while pristine)
-    std::vector<int> base_;            // per ray row: the lane of column 0 in each channel
+    std::vector<int> org_, cap_;       // per ray row: its window, columns org .. org + cap - 1 per channel
     std::vector<int> vlo_, vhi_;       // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
-    std::vector<float*> spare_;        // blocks of rows that left the block, for reuse
     std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)
     std::vector<int> pending_;  // per ray row: u crossings not yet applied (besides its class's, below)
     std::vector<int> seenU_;    // per ray row: its class's u-crossing count when it last synced
