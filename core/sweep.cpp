@@ -23,7 +23,6 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <map>
 #include <memory>
 
 #include "core/sweep.h"
@@ -410,51 +409,21 @@ private:
     std::vector<int> occupied_;         // voxel rows with spanLo < spanHi
 };
 
-// Storage for written ray rows, kept per thread across sweeps and passes: a row block is
-// touched once and then reused, so sweeps after the first cost no page faults. Blocks of
-// one size (3 W floats; W depends on the sweep axis) are pooled together; the pool keeps
-// at most kRowCacheBytes per thread and frees the rest.
-class RowBlockCache {
-public:
-    static constexpr size_t kRowCacheBytes = size_t(256) << 20;
-    static RowBlockCache& local() {
-        thread_local RowBlockCache cache;
-        return cache;
-    }
-    float* take(size_t floats) {
-        std::vector<float*>& free = free_[floats];
-        if (free.empty()) return new float[floats];
-        float* p = free.back();
-        free.pop_back();
-        bytes_ -= floats * sizeof(float);
-        return p;
-    }
-    void give(float* p, size_t floats) {
-        if (bytes_ + floats * sizeof(float) > kRowCacheBytes) {
-            delete[] p;
-            return;
-        }
-        free_[floats].push_back(p);
-        bytes_ += floats * sizeof(float);
-    }
-    ~RowBlockCache() {
-        for (auto& kv : free_)
-            for (float* p : kv.second) delete[] p;
-    }
-
-private:
-    std::map<size_t, std::vector<float*>> free_;
-    size_t bytes_ = 0;
-};
-
 // The state of one sweep: rays, the planes of the current tile layer (its own, or a
-// batch's) and the tallies. Rays: ray row (cell v, class) is row index cellV r^2 + class.
-// A pristine row has no storage. A written row keeps only the columns the kernel has
-// touched (vlo .. vhi - 1; the other rays hold the boundary radiance) in a window of cap
-// columns starting at column org, 3 channels of cap lanes: a u crossing moves the window
-// (org) with the rays instead of moving data, and the window grows (a new power-of-two
-// block) only when the kernel needs columns outside it. So a row costs what the density
-// it meets is wide, not what the block is. Columns >= nu are padding.
+// batch's) and the tallies. Rays: ray row (cell v, class) is row index cellV r^2 + class;
+// a pristine row has no storage of its own (every ray holds the boundary radiance). A
+// written row keeps only the columns the kernel has touched (vlo .. vhi - 1; the other
+// rays hold the boundary radiance) in a window of cap columns starting at column org, 3
+// channels of cap lanes: a u crossing moves the window with the rays instead of moving
+// data. Storage, by how full the block is:
+// - dense: every row has a slot of C = nuPad + kSlack lanes per channel in one arena, in
+//   row order (rows are walked in that order: the prefetcher follows); the window is
+//   re-centred within the slot when the kernel needs columns outside it (about once every
+//   kSlack crossings);
+// - sparse (a few puffs in a large box): a written row gets a block of its own (a power of
+//   two of columns), replaced by a larger one when the kernel needs columns
+//   outside it, so a row costs what the density it meets is wide, not what the block is.
+// Columns >= nu are padding.
 class StepSweep {
 public:
     static constexpr int K = Medium::kTile;
@@ -466,9 +435,17 @@ public:
         rows_count_ = size_t(r) * r * g_.nv;
         // A ray row gets storage only when it first meets allocated voxels (pristine_), so
         // the rays of empty space cost neither memory traffic nor pages.
+        // Dense enough blocks keep every row's slot in one arena in row order; sparse ones
+        // give each written row a block of its own, sized to the columns it touched.
+        const size_t tiles = size_t(m.tilesX()) * m.tilesY() * m.tilesZ();
+        dense_ = !m.sparse() || m.storedTiles * kSparseBlockRatio >= tiles;
+        C_ = f_.tnu * K + kSlack;
+        // Uninitialised: a row's slot is written only when the row first meets allocated
+        // voxels, so the rows of empty space cost neither memory traffic nor pages.
+        if (dense_) arena_.reset(new float[rows_count_ * 3 * size_t(C_)]);
         block_.assign(rows_count_, nullptr);
-        org_.assign(rows_count_, 0);
         cap_.assign(rows_count_, 0);
+        org_.assign(rows_count_, 0);
         vlo_.assign(rows_count_, 0);
         vhi_.assign(rows_count_, 0);
         pristine_.assign(rows_count_, 1);
@@ -493,9 +470,8 @@ public:
     }
 
     ~StepSweep() {
-        RowBlockCache& cache = RowBlockCache::local();
-        for (size_t row = 0; row < rows_count_; ++row)
-            if (block_[row]) cache.give(block_[row], 3 * size_t(cap_[row]));
+        if (!dense_)
+            for (float* b : block_) delete[] b;
     }
     StepSweep(const StepSweep&) = delete;
     StepSweep& operator=(const StepSweep&) = delete;
@@ -586,7 +562,13 @@ private:
                     }
                 }
         }
-        std::sort(cand_.begin(), cand_.end());
+        // In row order; a dense layer marks most rows, where a scan beats a sort.
+        if (cand_.size() * 8 < rows_count_) std::sort(cand_.begin(), cand_.end());
+        else {
+            cand_.clear();
+            for (size_t row = 0; row < rows_count_; ++row)
+                if (mark_[row] == stamp_) cand_.push_back(row);
+        }
         for (size_t row : cand_) {
             const int cls = int(row % size_t(rr)), cellV = int(row / size_t(rr));
             syncPending(row, 0);
@@ -653,26 +635,26 @@ private:
         std::uint8_t& p = pristine_[row];
         if (!p) return;
         vlo_[row] = vhi_[row] = 0;
+        if (dense_) {
+            block_[row] = arena_.get() + row * 3 * size_t(C_);
+            cap_[row] = C_;
+            org_[row] = g_.su > 0 ? -kSlack : 0;  // the slack lies on the side the window moves to
+        }
         p = 0;
     }
 
     // Makes lanes [lo, end) of a written row hold its rays, for the kernel: the row's
-    // window grows to cover them (a power-of-two block from the thread's cache), columns
-    // outside the valid ones get the boundary radiance and join them; padding columns
-    // (>= nu) get it too.
+    // window is re-centred when they lie outside it (its valid columns moved within the
+    // row's slot), columns outside the valid ones get the boundary radiance and join them;
+    // padding columns (>= nu) get it too.
     void validate(size_t row, int lo, int end) {
         int& a = vlo_[row];
         int& b = vhi_[row];
         const int needLo = a >= b ? lo : std::min(a, lo), needHi = a >= b ? end : std::max(b, end);
-        if (!block_[row] || needLo < org_[row] || needHi > org_[row] + cap_[row]) {
-            int cap = 64;
-            while (cap < needHi - needLo) cap *= 2;
-            float* nb = RowBlockCache::local().take(3 * size_t(cap));
-            for (int c = 0; c < 3 && a < b; ++c) std::memcpy(nb + size_t(c) * cap + (a - needLo), at(row, c, a), size_t(b - a) * sizeof(float));
-            if (block_[row]) RowBlockCache::local().give(block_[row], 3 * size_t(cap_[row]));
-            block_[row] = nb;
-            cap_[row] = cap;
-            org_[row] = needLo;
+        if (!block_[row]) grow(row, needLo, needHi);
+        else if (needLo < org_[row] || needHi > org_[row] + cap_[row]) {
+            if (dense_) recentre(row, needLo, needHi);
+            else grow(row, needLo, needHi);
         }
         const int hi = std::min(end, g_.nu);
         for (int c = 0; c < 3; ++c) {
@@ -687,6 +669,33 @@ private:
         else a = std::min(a, lo), b = std::max(b, hi);
     }
 
+    // Dense blocks: moves the window so it holds columns [needLo, needHi) with all the slack
+    // on the side it moves to (up for su > 0), 8-aligned; the valid columns move within the slot.
+    void recentre(size_t row, int needLo, int needHi) {
+        const int to = g_.su > 0 ? (needHi - C_ + 7) & ~7 : needLo & ~7;
+        const int a = vlo_[row], b = vhi_[row], from = org_[row];
+        for (int c = 0; c < 3 && a < b; ++c) {
+            float* slot = block_[row] + size_t(c) * size_t(C_);
+            std::memmove(slot + (a - to), slot + (a - from), size_t(b - a) * sizeof(float));
+        }
+        org_[row] = to;
+    }
+
+    // Sparse blocks: a new block (a power of two of columns) whose window holds columns
+    // [needLo, needHi), the valid columns copied over.
+    void grow(size_t row, int needLo, int needHi) {
+        int cap = 64;
+        while (cap < needHi - needLo) cap *= 2;
+        float* nb = new float[3 * size_t(cap)];
+        const int a = vlo_[row], b = vhi_[row];
+        for (int c = 0; c < 3 && a < b; ++c)
+            std::memcpy(nb + size_t(c) * cap + (a - needLo), at(row, c, a), size_t(b - a) * sizeof(float));
+        delete[] block_[row];
+        block_[row] = nb;
+        cap_[row] = cap;
+        org_[row] = needLo;
+    }
+
     // The whole row leaves the block through a v face: every ray is tallied as escaped and
     // re-enters with the boundary radiance, which leaves the row pristine (its storage
     // goes back to the thread's cache).
@@ -694,8 +703,8 @@ private:
         applyShift(row);
         tallyRowEscape(row);
         for (int c = 0; c < 3; ++c) inj_[c] += double(bnd_[c]) * g_.nu;
-        if (block_[row]) {
-            RowBlockCache::local().give(block_[row], 3 * size_t(cap_[row]));
+        if (!dense_) {
+            delete[] block_[row];
             block_[row] = nullptr;
         }
         pristine_[row] = 1;
@@ -785,8 +794,13 @@ private:
     float dk_ = 1.0f;  // deposit factor in the kernel
     int slice_ = 0;
     size_t rows_count_ = 0;            // ray rows
-    std::vector<float*> block_;        // per ray row: its storage (null while pristine)
-    std::vector<int> org_, cap_;       // per ray row: its window, columns org .. org + cap - 1 per channel
+    static constexpr int kSlack = 64;  // dense: columns of a slot beyond the plane's width
+    static constexpr size_t kSparseBlockRatio = 16;  // dense: at least 1/16 of the block's tiles stored
+    bool dense_ = true;
+    int C_ = 0;                        // dense: columns of a row's slot, nu rounded up to tiles plus kSlack
+    std::unique_ptr<float[]> arena_;   // dense: the rows' slots, 3 channels of C_ lanes each, in row order
+    std::vector<float*> block_;        // per written ray row: its storage (sparse: null until touched)
+    std::vector<int> cap_, org_;       // per written ray row: its window holds columns org .. org + cap - 1
     std::vector<int> vlo_, vhi_;       // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
     std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)
     std::vector<int> pending_;  // per ray row: u crossings not yet applied (besides its class's, below)
