@@ -9,7 +9,7 @@
 //   injectCoarse:   a coarse source back on the fine grid, each fine voxel its coarse
 //                   parent's value: with sigma_c = the mean of the children, the power
 //                   sigma_s U V of every coarse voxel is kept exactly
-// The solver uses them in a two-grid iteration (core/lpm_solver.cpp, continueOnCoarse).
+// The solver uses them in a two-grid iteration (core/two_grid.cpp, LpmSolve::continueOnCoarse).
 #pragma once
 
 #include <vector>
