@@ -416,10 +416,10 @@ private:
 // rays hold the boundary radiance) in a window of cap columns starting at column org, 3
 // channels of cap lanes: a u crossing moves the window with the rays instead of moving
 // data. Storage, by how full the block is:
-// - dense: every row has a slot of C = nuPad + kSlack lanes per channel in one arena, in
+// - dense: every row has a slot of C = nuPad + slack lanes per channel in one arena, in
 //   row order (rows are walked in that order: the prefetcher follows); the window is
 //   re-centred within the slot when the kernel needs columns outside it (about once every
-//   kSlack crossings);
+//   slack crossings);
 // - sparse (a few puffs in a large box): a written row gets a block of its own (a power of
 //   two of columns), replaced by a larger one when the kernel needs columns
 //   outside it, so a row costs what the density it meets is wide, not what the block is.
@@ -439,7 +439,10 @@ public:
         // give each written row a block of its own, sized to the columns it touched.
         const size_t tiles = size_t(m.tilesX()) * m.tilesY() * m.tilesZ();
         dense_ = !m.sparse() || m.storedTiles * kSparseBlockRatio >= tiles;
-        C_ = f_.tnu * K + kSlack;
+        // Slack: a quarter of the row's width, 8 to 64 columns (re-centring every slack
+        // crossings moves only the touched columns; more slack widens every slot).
+        slack_ = std::clamp((f_.tnu * K / 4) & ~7, 8, kMaxSlack);
+        C_ = f_.tnu * K + slack_;
         // Uninitialised: a row's slot is written only when the row first meets allocated
         // voxels, so the rows of empty space cost neither memory traffic nor pages.
         if (dense_) arena_.reset(new float[rows_count_ * 3 * size_t(C_)]);
@@ -547,6 +550,16 @@ private:
     void sweepOccupiedRows() {
         const int r = g_.r, rr = r * r, nv = g_.nv;
         cand_.clear();
+        if (planes_->occupied().size() * 4 >= size_t(nv) * 3) {  // most voxel rows occupied: every row
+            for (size_t row = 0; row < rows_count_; ++row) mark_[row] = stamp_;
+            for (size_t row = 0; row < rows_count_; ++row) {
+                const int cls = int(row % size_t(rr)), cellV = int(row / size_t(rr));
+                syncPending(row, 0);
+                processRow(row, cellV, SV_[cls / r], ev_[size_t(cls)], true);
+                seenU_[row] = classU_[cls] + uCount_[cls];
+            }
+            return;
+        }
         for (int cls = 0; cls < rr; ++cls) {
             int shift = SV_[cls / r];
             int shifts[8], ns = 0;
@@ -638,7 +651,7 @@ private:
         if (dense_) {
             block_[row] = arena_.get() + row * 3 * size_t(C_);
             cap_[row] = C_;
-            org_[row] = g_.su > 0 ? -kSlack : 0;  // the slack lies on the side the window moves to
+            org_[row] = g_.su > 0 ? -slack_ : 0;  // the slack lies on the side the window moves to
         }
         p = 0;
     }
@@ -794,10 +807,11 @@ private:
     float dk_ = 1.0f;  // deposit factor in the kernel
     int slice_ = 0;
     size_t rows_count_ = 0;            // ray rows
-    static constexpr int kSlack = 64;  // dense: columns of a slot beyond the plane's width
+    static constexpr int kMaxSlack = 64;
+    int slack_ = 8;                    // dense: columns of a slot beyond the plane's width
     static constexpr size_t kSparseBlockRatio = 16;  // dense: at least 1/16 of the block's tiles stored
     bool dense_ = true;
-    int C_ = 0;                        // dense: columns of a row's slot, nu rounded up to tiles plus kSlack
+    int C_ = 0;                        // dense: columns of a row's slot, nu rounded up to tiles plus slack
     std::unique_ptr<float[]> arena_;   // dense: the rows' slots, 3 channels of C_ lanes each, in row order
     std::vector<float*> block_;        // per written ray row: its storage (sparse: null until touched)
     std::vector<int> cap_, org_;       // per written ray row: its window holds columns org .. org + cap - 1
