@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "core/lpm_solver.h"
 #include "test_scenes.h"
@@ -163,7 +164,7 @@ TEST(SolvePlan, SameInputsSamePlan) {
 }
 
 TEST(SolvePlan, SolveCarriesThePlanOutAndReportsIt) {
-    const Medium m = makeVolume(VolumeKind::Cloud, 16, 4.0);
+    const Medium m = makeVolume(VolumeKind::Cloud, 16, 2.0);
     const EnvMap sky = makeSky(64);
     Lights lights;
     lights.env = &sky;
@@ -186,11 +187,12 @@ TEST(SolvePlan, InvalidSettingsAreRefusedBeforePlanning) {
 }
 
 // The shortcuts against the expensive path they replace, on a heterogeneous 16^3 cloud
-// under a sky: each within the solve tolerance's reach (1e-3 of the injected power moves
-// band 0 by well under 1%) or, where discretisation changes, the bound states it.
+// under a sky (measured: 2.7e-6 for bins and SH order, 1.0e-3 for the source shape, 1.8e-3
+// for the rays of the higher orders, 0 for the emission pass): where the shortcut is exact
+// the bound is float rounding's; where it changes the discretisation, 5e-3.
 class ShortcutVsExpensive : public ::testing::Test {
 protected:
-    Medium m = makeVolume(VolumeKind::Cloud, 16, 4.0);
+    Medium m = makeVolume(VolumeKind::Cloud, 16, 2.0);
     EnvMap sky = makeSky(64);
     Lights lights;
     void SetUp() override { lights.env = &sky; }
@@ -202,7 +204,9 @@ TEST_F(ShortcutVsExpensive, OneIsotropicBinAgainstTwentyFourBins) {
     const LpmResult cheap = solveLpm(m, lights, LpmSettings{}), full = solveLpm(m, lights, expensive);
     EXPECT_EQ(cheap.binCount, 1);
     EXPECT_EQ(full.binCount, 24);
-    EXPECT_LT(band0Difference(full, cheap), 2e-3);
+    const double d = band0Difference(full, cheap);
+    std::printf("band-0 relative RMS, shortcut against the expensive path: %.3g\n", d);
+    EXPECT_LT(d, 1e-4);
 }
 
 TEST_F(ShortcutVsExpensive, ShOrderZeroAgainstNearlyIsotropicShOrderTwo) {
@@ -211,7 +215,9 @@ TEST_F(ShortcutVsExpensive, ShOrderZeroAgainstNearlyIsotropicShOrderTwo) {
     const LpmResult cheap = solveLpm(m, lights, LpmSettings{}), full = solveLpm(nearIso, lights, LpmSettings{});
     EXPECT_EQ(cheap.shOrder, 0);
     EXPECT_EQ(full.shOrder, 2);
-    EXPECT_LT(band0Difference(full, cheap), 2e-3);
+    const double d = band0Difference(full, cheap);
+    std::printf("band-0 relative RMS, shortcut against the expensive path: %.3g\n", d);
+    EXPECT_LT(d, 1e-4);
     double higher = 0, band0 = 0;
     for (size_t v = 0; v < full.sh.size() / 27; ++v) {
         band0 = std::max(band0, std::fabs(double(full.sh[v * 27])));
@@ -231,7 +237,9 @@ TEST_F(ShortcutVsExpensive, VoxelConstantSourceAgainstLinearInThinVoxels) {
     EXPECT_FALSE(cheap.plan.linearSource);
     EXPECT_TRUE(full.plan.linearSource);
     // Voxel optical depths up to 0.5: the two source shapes differ by O(tau^2).
-    EXPECT_LT(band0Difference(full, cheap), 1e-2);
+    const double d = band0Difference(full, cheap);
+    std::printf("band-0 relative RMS, shortcut against the expensive path: %.3g\n", d);
+    EXPECT_LT(d, 5e-3);
 }
 
 TEST_F(ShortcutVsExpensive, OneRayForHigherOrdersAgainstTwo) {
@@ -240,7 +248,9 @@ TEST_F(ShortcutVsExpensive, OneRayForHigherOrdersAgainstTwo) {
     const LpmResult cheap = solveLpm(m, lights, cheapS), full = solveLpm(m, lights, LpmSettings{});
     EXPECT_EQ(cheap.plan.raysHigher, 1);
     EXPECT_EQ(full.plan.raysHigher, 2);
-    EXPECT_LT(band0Difference(full, cheap), 1e-2);
+    const double d = band0Difference(full, cheap);
+    std::printf("band-0 relative RMS, shortcut against the expensive path: %.3g\n", d);
+    EXPECT_LT(d, 5e-3);
 }
 
 TEST_F(ShortcutVsExpensive, NoEmissionPassWithoutEmission) {
@@ -250,5 +260,7 @@ TEST_F(ShortcutVsExpensive, NoEmissionPassWithoutEmission) {
     const LpmResult cheap = solveLpm(m, lights, LpmSettings{}), full = solveLpm(withGrid, lights, LpmSettings{});
     EXPECT_FALSE(cheap.plan.emissionPass);
     EXPECT_TRUE(full.plan.emissionPass);
-    EXPECT_LT(band0Difference(full, cheap), 1e-6);
+    const double d = band0Difference(full, cheap);
+    std::printf("band-0 relative RMS, shortcut against the expensive path: %.3g\n", d);
+    EXPECT_LT(d, 1e-6);
 }
