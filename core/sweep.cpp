@@ -660,7 +660,7 @@ private:
     // window is re-centred when they lie outside it (its valid columns moved within the
     // row's slot), columns outside the valid ones get the boundary radiance and join them;
     // padding columns (>= nu) get it too.
-    void validate(size_t row, int lo, int end) {
+    void prepareColumns(size_t row, int lo, int end) {
         int& a = vlo_[row];
         int& b = vhi_[row];
         const int needLo = a >= b ? lo : std::min(a, lo), needHi = a >= b ? end : std::max(b, end);
@@ -710,8 +710,8 @@ private:
     }
 
     // The whole row leaves the block through a v face: every ray is tallied as escaped and
-    // re-enters with the boundary radiance, which leaves the row pristine (its storage
-    // goes back to the thread's cache).
+    // re-enters with the boundary radiance, which leaves the row pristine (sparse blocks:
+    // its block is freed).
     void leaveRow(size_t row) {
         applyShift(row);
         tallyRowEscape(row);
@@ -787,7 +787,7 @@ private:
             materialize(row);
             // lo is tile-aligned; hi rounds up into the padding columns (sigma = 0 there).
             const int chunks = (hi - lo + K - 1) / K;
-            validate(row, lo, lo + chunks * K);
+            prepareColumns(row, lo, lo + chunks * K);
             float* plane = &planes_->data()[planeIndex(planes_->rows(), vr, slice_, lo)];
             if (job_.src)
                 segmentChunks<true>(chunks, float(e.len), dk_, plane, at(row, 0, lo), size_t(cap_[row]));
