@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <initializer_list>
+#include <vector>
 
 #include "core/rng.h"
 
@@ -80,6 +82,24 @@ Job makeJob(const Vec3& w, const std::vector<float>* src, double o) {
     return j;
 }
 
+/// Every direction of `dirs` at each ray density of `rs`, without and with the source
+/// `src` (lattice offsets offset0 + k step, k the case): the kernel against the reference.
+/// Returns the number of cases.
+int expectMatchesReference(const Medium& m, const std::vector<Vec3>& dirs, std::initializer_list<int> rs,
+                           const std::vector<float>& src, double offset0, double step) {
+    int cases = 0;
+    for (int r : rs)
+        for (const Vec3& w : dirs)
+            for (bool withSrc : {false, true}) {
+                const Job job = makeJob(w, withSrc ? &src : nullptr, std::fmod(offset0 + step * cases, 1.0));
+                const Compare c = compareKernels(m, job, r);
+                EXPECT_LT(c.maxRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r << " src " << withSrc;
+                EXPECT_LT(c.tallyRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r;
+                ++cases;
+            }
+    return cases;
+}
+
 }  // namespace
 
 TEST(SweepKernel, ExpNegMatchesStdExp) {
@@ -141,18 +161,8 @@ TEST(SweepKernel, EmptyTileLayersMatchReference) {
     for (float& x : m.sigmaT) x = float(2 * rng.uniform());
     std::vector<float> src(m.voxelCount() * 3);
     for (float& x : src) x = float(rng.uniform());
-    const Vec3 dirs[] = {{1, 0.7, -0.4}, {-1, -0.3, 0.9}, {0.6, 1, 0.8}, {-0.2, -1, -0.95}, {0.9, -0.8, 1}, {0.3, 0.4, -1}};
-    int cases = 0;
-    for (int r : {1, 2, 3})
-        for (const Vec3& w : dirs)
-            for (bool withSrc : {false, true}) {
-                const Job job = makeJob(w, withSrc ? &src : nullptr, std::fmod(0.11 + 0.07 * cases, 1.0));
-                const Compare c = compareKernels(m, job, r);
-                EXPECT_LT(c.maxRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r << " src " << withSrc;
-                EXPECT_LT(c.tallyRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r;
-                ++cases;
-            }
-    EXPECT_EQ(cases, 36);
+    const std::vector<Vec3> dirs = {{1, 0.7, -0.4}, {-1, -0.3, 0.9}, {0.6, 1, 0.8}, {-0.2, -1, -0.95}, {0.9, -0.8, 1}, {0.3, 0.4, -1}};
+    EXPECT_EQ(expectMatchesReference(m, dirs, {1, 2, 3}, src, 0.11, 0.07), 36);
 }
 
 // Empty tiles are skipped, not mis-swept: a sparse block and the same block stored densely
@@ -180,18 +190,8 @@ TEST(SweepKernel, DistantBlobsMatchReference) {
     for (float& x : m.sigmaT) x = float(0.5 * rng.uniform());
     std::vector<float> src(m.voxelCount() * 3);
     for (float& x : src) x = float(rng.uniform());
-    const Vec3 dirs[] = {{1, 0.95, 0.9}, {-1, -0.9, -0.97}, {0.9, 1, 0.3}, {0.2, -0.6, 1}, {1, -0.99, 0.05}, {-0.7, 0.8, -1}};
-    int cases = 0;
-    for (int r : {1, 2})
-        for (const Vec3& w : dirs)
-            for (bool withSrc : {false, true}) {
-                const Job job = makeJob(w, withSrc ? &src : nullptr, std::fmod(0.23 + 0.13 * cases, 1.0));
-                const Compare c = compareKernels(m, job, r);
-                EXPECT_LT(c.maxRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r << " src " << withSrc;
-                EXPECT_LT(c.tallyRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r;
-                ++cases;
-            }
-    EXPECT_EQ(cases, 24);
+    const std::vector<Vec3> dirs = {{1, 0.95, 0.9}, {-1, -0.9, -0.97}, {0.9, 1, 0.3}, {0.2, -0.6, 1}, {1, -0.99, 0.05}, {-0.7, 0.8, -1}};
+    EXPECT_EQ(expectMatchesReference(m, dirs, {1, 2}, src, 0.23, 0.13), 24);
 }
 
 // A long dense block crossed at a steep lateral slope: every ray row's window drifts with
@@ -201,18 +201,8 @@ TEST(SweepKernel, LongDenseBlockMatchesReference) {
     Pcg32 rng(7, 9);
     std::vector<float> src(m.voxelCount() * 3);
     for (float& x : src) x = float(rng.uniform());
-    const Vec3 dirs[] = {{0.9, 0.02, 1}, {-0.85, -0.03, -1}, {0.6, 0.01, -1}, {-0.7, 0.0, 1}};
-    int cases = 0;
-    for (int r : {1, 2})
-        for (const Vec3& w : dirs)
-            for (bool withSrc : {false, true}) {
-                const Job job = makeJob(w, withSrc ? &src : nullptr, std::fmod(0.31 + 0.17 * cases, 1.0));
-                const Compare c = compareKernels(m, job, r);
-                EXPECT_LT(c.maxRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r << " src " << withSrc;
-                EXPECT_LT(c.tallyRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r;
-                ++cases;
-            }
-    EXPECT_EQ(cases, 16);
+    const std::vector<Vec3> dirs = {{0.9, 0.02, 1}, {-0.85, -0.03, -1}, {0.6, 0.01, -1}, {-0.7, 0.0, 1}};
+    EXPECT_EQ(expectMatchesReference(m, dirs, {1, 2}, src, 0.31, 0.17), 16);
 }
 
 TEST(SweepKernel, SparseStorageEqualsDense) {
