@@ -60,7 +60,8 @@ void checkOptions(const BakeOptions& o) {
     }
     if (o.threads < 0) throw UsageError("--threads must be 0 (all cores) or positive, got " + std::to_string(o.threads));
     const LpmSettings& s = o.solver;
-    if (s.directionsPerFace < 1) throw UsageError("--directions-per-face must be >= 1");
+    if (s.directionsPerFace < 1 || s.directionsPerFace > 64)
+        throw UsageError("--directions-per-face must be in 1..64, got " + std::to_string(s.directionsPerFace));
     if (s.raysPerVoxel < 1 || s.raysPerVoxel > 16) throw UsageError("--rays-per-voxel must be in 1..16");
     if (s.raysHigherOrders != -1 && (s.raysHigherOrders < 1 || s.raysHigherOrders > 16))
         throw UsageError("--rays-higher-orders must be -1 (auto) or in 1..16, got " + std::to_string(s.raysHigherOrders));

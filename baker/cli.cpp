@@ -242,7 +242,7 @@ int runCli(int argc, char** argv) {
 
     auto* gS = "Solver";
     app.add_option("--directions-per-face", b.solver.directionsPerFace,
-                   "n: n x n propagation directions per cube face")->default_val(b.solver.directionsPerFace)->group(gS);
+                   "n: n x n propagation directions per cube face (1..64)")->default_val(b.solver.directionsPerFace)->group(gS);
     app.add_option("--rays-per-voxel", b.solver.raysPerVoxel, "ray-map rays per voxel per lateral axis (1..16)")
         ->default_val(b.solver.raysPerVoxel)->group(gS);
     app.add_option("--rays-higher-orders", b.solver.raysHigherOrders,

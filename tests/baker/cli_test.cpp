@@ -82,6 +82,9 @@ TEST(Cli, UsageErrorsExit1) {
     expectOneLineError(
         runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--rays-higher-orders", "0"}, dir), 1,
         "usage", {"--rays-higher-orders", "got 0"});
+    expectOneLineError(
+        runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--directions-per-face", "65"}, dir), 1,
+        "usage", {"--directions-per-face", "got 65"});
     expectOneLineError(runLpmbake({"render", dataPath("vdb/torus01.vdb"), "-o", dir + "/x.jpg"}, dir), 1, "usage",
                        {".exr", ".png"});
     EXPECT_FALSE(fs::exists(out));
