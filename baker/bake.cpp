@@ -231,9 +231,10 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
         eo.workingSpace = o.workingSpace;
         eo.rotateYDeg = o.envRotateDeg;
         eo.scale = o.envScale;
+        eo.up = o.upAxis;
         eo.sanitize = o.sanitize;
         const std::string key = o.env + "\n" + o.envColorSpace + "\n" + o.workingSpace + "\n" +
-                                fmtExact(o.envRotateDeg) + "\n" + fmtExact(o.envScale) + "\n" +
+                                fmtExact(o.envRotateDeg) + "\n" + fmtExact(o.envScale) + "\n" + upAxisName(o.upAxis) + "\n" +
                                 std::to_string(o.sanitize);
         if (context && context->env && context->envKey == key) {
             envHeld = context->env;

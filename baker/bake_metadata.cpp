@@ -36,6 +36,7 @@ std::string canonicalSettings(const BakeOptions& o) {
     line("working_space", o.workingSpace);
     num("env_rotate", o.envRotateDeg);
     num("env_scale", o.envScale);
+    line("up_axis", upAxisName(o.upAxis));
     for (const SunOption& s : o.suns) {
         line("sun_toward", fmtExact(s.toSun.x) + "," + fmtExact(s.toSun.y) + "," + fmtExact(s.toSun.z));
         rgb("sun_irradiance", s.irradiance);
@@ -104,6 +105,7 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
                  "steradian); lengths: world units of the grid transform; sigma_t = density * density_scale per "
                  "world unit");
     str("frame", "world");
+    str("up_axis", upAxisName(o.upAxis));
     str("working_colorspace", env.workingSpace.empty() ? o.workingSpace : env.workingSpace);
     str("density_grid", o.noDensity ? "" : "density");
     dbl("density_scale", o.densityScale);
@@ -116,7 +118,10 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
         str("env_colorspace", env.colorSpace);
         dbl("env_rotate_y_deg", o.envRotateDeg);
         dbl("env_scale", o.envScale);
-        str("env_orientation", "lat-long, OpenEXR ImfEnvmap convention, +Y up");
+        str("env_orientation", o.upAxis == UpAxis::Z
+                                   ? "lat-long, OpenEXR ImfEnvmap convention, turned +90 deg about +X: zenith +Z, "
+                                     "image centre toward -Y; env_rotate_y_deg turns it about +Z"
+                                   : "lat-long, OpenEXR ImfEnvmap convention, +Y up");
         lightsDesc += "environment '" + o.env + "' (" + env.colorSpace + ", rotate " + fmt(o.envRotateDeg) +
                       " deg, scale " + fmt(o.envScale) + ")";
     }

@@ -194,6 +194,7 @@ int runCli(int argc, char** argv) {
     std::vector<double> sunAngle;
     bool noKrylov = false;
     std::string sourceShape = "auto", deltaM = "auto", multires = "auto", sunTerm = "auto";
+    std::string upAxis = "y";
     std::string solveScale = "1";
 
     app.add_option("input", b.input, "input OpenVDB file (positional)");
@@ -231,7 +232,11 @@ int runCli(int argc, char** argv) {
                    "colour space of --env (default: the file's, if the OCIO config knows it, else lin_rec709)")
         ->group(gL);
     app.add_option("--working-space", b.workingSpace, "colour space of the bake")->default_val("ACEScg")->group(gL);
-    app.add_option("--env-rotate", b.envRotateDeg, "rotate the environment about +Y (degrees, right-handed)")
+    app.add_option("--up-axis", upAxis,
+                   "the scene's up axis: y (default; Houdini, Maya) or z (Blender, Mantaflow): the environment's "
+                   "zenith lies along it")
+        ->check(CLI::IsMember({"y", "z"}))->default_val("y")->group(gL);
+    app.add_option("--env-rotate", b.envRotateDeg, "rotate the environment about the up axis (degrees, right-handed)")
         ->default_val(0.0)->group(gL);
     app.add_option("--env-scale", b.envScale, "multiply environment radiance")->default_val(1.0)->group(gL);
     app.add_option("--sun", suns, "direction TOWARD a sun, DX,DY,DZ (repeatable)")->group(gL);
@@ -338,12 +343,12 @@ int runCli(int argc, char** argv) {
     // render
     RenderOptions r;
     r.threads = defaultThreads();
-    std::string eye, target, up = "0,1,0", size = "256x256";
+    std::string eye, target, up, size = "256x256";
     CLI::App* render = app.add_subcommand("render", "ray-march a preview image of a bake (EXR scene-linear, PNG sRGB)");
     render->add_option("bake", r.bake, "baked VDB")->required();
     render->add_option("--eye", eye, "camera position X,Y,Z (default: framing the volume from +Z, a little above)");
     render->add_option("--target", target, "point looked at X,Y,Z (default: the centre of the volume)");
-    render->add_option("--up", up, "up vector X,Y,Z")->default_val("0,1,0");
+    render->add_option("--up", up, "camera up vector X,Y,Z (default: the bake's up axis, lpm:up_axis)");
     render->add_option("--fov-y", r.fovYDeg, "vertical field of view in degrees")->default_val(40.0);
     render->add_option("--size", size, "image size WxH")->default_val("256x256");
     render->add_option("--env", r.env, "environment drawn behind the volume (rotation/scale from the bake)");
@@ -376,6 +381,7 @@ int runCli(int argc, char** argv) {
     }
 
     if (noKrylov) b.solver.krylov = false;
+    b.upAxis = upAxis == "z" ? UpAxis::Z : UpAxis::Y;
     b.solver.linearSource = sourceShape == "linear" ? 1 : (sourceShape == "constant" ? 0 : -1);
     b.solver.deltaM = deltaM == "on" ? 1 : (deltaM == "off" ? 0 : -1);
     b.solver.multires = multires == "on" ? 1 : (multires == "off" ? 0 : -1);
@@ -388,7 +394,8 @@ int runCli(int argc, char** argv) {
             r.autoTarget = target.empty();
             if (!r.autoEye) r.eye = parseVec3(eye, "--eye");
             if (!r.autoTarget) r.target = parseVec3(target, "--target");
-            r.up = parseVec3(up, "--up");
+            r.autoUp = up.empty();
+            if (!r.autoUp) r.up = parseVec3(up, "--up");
             parseSize(size, r.width, r.height);
             runRender(r, log);
             return kExitOk;

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core/envmap.h"
 #include "core/error.h"
 #include "core/lpm_cache.h"
 #include "core/lpm_solver.h"
@@ -57,6 +58,7 @@ struct BakeOptions {
     std::string workingSpace = "ACEScg";
     double envRotateDeg = 0.0;
     float envScale = 1.0f;
+    UpAxis upAxis = UpAxis::Y;  ///< the scene's up axis: where the environment's zenith lies
     std::vector<SunOption> suns;
 
     LpmSettings solver;
@@ -92,6 +94,7 @@ struct RenderOptions {
     std::string bake, output, env, envColorSpace;
     Vec3 eye{0, 0, 5}, target{0, 0, 0}, up{0, 1, 0};
     bool autoEye = false, autoTarget = false;  ///< frame the volume's bounding box instead
+    bool autoUp = false;  ///< the bake's up axis (lpm:up_axis) instead of `up`
     double fovYDeg = 40;
     int width = 256, height = 256;
     double stepVoxels = 0.5;  ///< ray-march step in voxels

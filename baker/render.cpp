@@ -96,6 +96,7 @@ void runRender(const RenderOptions& o, const Log& log) {
     const RGB albedo = metaRgb(meta, "lpm:albedo", RGB(0.9f));
     const std::string working = metaString(meta, "lpm:working_colorspace", "ACEScg");
     const int nc = shCount(bake.shOrder);
+    const UpAxis sceneUp = metaString(meta, "lpm:up_axis", "y") == "z" ? UpAxis::Z : UpAxis::Y;
 
     // Exact sun terms (format 2, core/sun_term.h): S(x, w) += E_k T_k(x) p_HG(g, dot(-toward_k, w)).
     std::vector<SunTerm> suns(bake.sunTransmittance.size());
@@ -115,6 +116,7 @@ void runRender(const RenderOptions& o, const Log& log) {
         eo.workingSpace = working;
         eo.rotateYDeg = metaDouble(meta, "lpm:env_rotate_y_deg", 0.0);
         eo.scale = float(metaDouble(meta, "lpm:env_scale", 1.0));
+        eo.up = sceneUp;
         EnvInput e = readEnvironment(eo);
         for (const auto& w : e.warnings) log.warn(w);
         env = std::move(e.env);
@@ -129,21 +131,22 @@ void runRender(const RenderOptions& o, const Log& log) {
     if (hasVolume) {
         const openvdb::CoordBBox cb = bake.density->evalActiveVoxelBoundingBox();
         box = openvdb::BBoxd(cb.min().asVec3d() - openvdb::Vec3d(1), cb.max().asVec3d() + openvdb::Vec3d(1));
-        // Default camera: look at the world-space box centre from +Z (and a little above
+        // Default camera: look at the world-space box centre from +Z (-Y in a Z-up bake; a little above
         // and to the right), far enough for the bounding sphere to fit the field of view.
         const openvdb::BBoxd wb = xf.indexToWorld(box);
         const openvdb::Vec3d c = wb.getCenter();
         const double radius = 0.5 * (wb.max() - wb.min()).length();
         if (o.autoTarget) cam.target = {c.x(), c.y(), c.z()};
         if (o.autoEye)
-            cam.eye = cam.target + normalize(Vec3(0.3, 0.35, 1.0)) * (1.05 * radius / std::sin(0.5 * o.fovYDeg * kPi / 180));
+            cam.eye = cam.target + normalize(upAxisToWorld(sceneUp, Vec3(0.3, 0.35, 1.0))) * (1.05 * radius / std::sin(0.5 * o.fovYDeg * kPi / 180));
     } else if (o.autoEye || o.autoTarget) {
         throw InputError("render", "'" + o.bake + "' is an empty bake: give --eye and --target");
     }
     if (!(length(cam.target - cam.eye) > 0)) throw UsageError("render: --eye and --target must differ");
-    if (!(length(cross(normalize(cam.target - cam.eye), o.up)) > 1e-6))
+    const Vec3 up = o.autoUp ? upAxisToWorld(sceneUp, Vec3(0, 1, 0)) : o.up;
+    if (!(length(cross(normalize(cam.target - cam.eye), up)) > 1e-6))
         throw UsageError("render: --up must not be parallel to the view direction");
-    cam.up = o.up;
+    cam.up = up;
     cam.fovYDeg = o.fovYDeg;
     cam.width = o.width;
     cam.height = o.height;

@@ -18,12 +18,16 @@ inline Vec3 dirFromUTheta(double u, double theta) {
 }
 }  // namespace
 
-EnvMap::EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDegrees, float scale)
+Vec3 upAxisToWorld(UpAxis a, const Vec3& d) { return a == UpAxis::Z ? Vec3(d.x, -d.z, d.y) : d; }
+
+EnvMap::EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDegrees, float scale, UpAxis up)
     : width_(width), height_(height), pixels_(std::move(pixels)) {
     if (width_ <= 0 || height_ <= 0 || pixels_.size() != size_t(width_) * height_)
         throw Error("EnvMap", "bad image size " + std::to_string(width_) + "x" +
                                   std::to_string(height_));
-    rot_ = Mat3::rotation({0, 1, 0}, rotateYDegrees * kPi / 180.0);
+    const Mat3 spin = Mat3::rotation({0, 1, 0}, rotateYDegrees * kPi / 180.0);
+    const Mat3 upTurn = up == UpAxis::Z ? Mat3::rotation({1, 0, 0}, kPi / 2) : Mat3::identity();
+    rot_ = upTurn * spin;
     rotInv_ = rot_.transposed();
     for (RGB& p : pixels_) {
         for (int c = 0; c < 3; ++c) {

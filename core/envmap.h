@@ -4,7 +4,11 @@
 // pixel is latitude +pi/2, longitude +pi; latitude 0 / longitude 0 is +Z; longitude
 // +pi/2 is +X. For a direction d pointing TOWARD the light:
 //   lat = asin(d.y), lon = atan2(d.x, d.z), u = (pi - lon) / (2 pi), v = (pi/2 - lat) / pi.
-// rotateY rotates the whole environment by that many degrees about +Y (right-handed).
+// rotateY rotates the whole environment by that many degrees about the image's +Y
+// (right-handed). The scene's up axis says which world axis the image's +Y is: UpAxis::Y
+// (default) uses the image frame as the world frame; UpAxis::Z (Blender, Mantaflow) turns
+// the image frame by +90 degrees about +X, (x, y, z)_image -> (x, -z, y)_world, so the
+// sky's zenith is world +Z and the image centre (longitude 0) faces world -Y.
 #pragma once
 
 #include <functional>
@@ -23,10 +27,20 @@ struct EnvHotPixel {
     double share = 0;     ///< share of the map's power (mean RGB x solid angle)
 };
 
+/// Which world axis is up for the environment (docs/conventions.md, "Up axis").
+enum class UpAxis { Y, Z };
+
+/// "y" or "z".
+inline const char* upAxisName(UpAxis a) { return a == UpAxis::Z ? "z" : "y"; }
+
+/// World direction of the environment image frame's direction `imageDir` before any
+/// --env-rotate (the up-axis turn alone).
+Vec3 upAxisToWorld(UpAxis a, const Vec3& imageDir);
+
 class EnvMap {
 public:
     EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDegrees = 0.0,
-           float scale = 1.0f);
+           float scale = 1.0f, UpAxis up = UpAxis::Y);
     static EnvMap constant(const RGB& radiance);
 
     int width() const { return width_; }

@@ -106,7 +106,7 @@ EnvInput readEnvironment(const EnvReadOptions& o) {
                                " negative pixel value(s) (in the file or outside the working gamut) clamped to 0");
     if (!(o.scale >= 0) || !std::isfinite(o.scale))
         throw InputError(kComp, "environment scale must be finite and non-negative, got " + std::to_string(o.scale));
-    out.env = std::make_unique<EnvMap>(out.width, out.height, std::move(pixels), o.rotateYDeg, o.scale);
+    out.env = std::make_unique<EnvMap>(out.width, out.height, std::move(pixels), o.rotateYDeg, o.scale, o.up);
     return out;
 }
 

@@ -17,6 +17,7 @@ struct EnvReadOptions {
     std::string workingSpace = "ACEScg";
     double rotateYDeg = 0.0;
     float scale = 1.0f;
+    UpAxis up = UpAxis::Y;               ///< the scene's up axis (core/envmap.h)
     bool sanitize = false;               ///< NaN/Inf pixels -> 0 instead of an error
 };
 

@@ -70,6 +70,37 @@ TEST(Orientation, SunAndEnvironmentHotSpotAgree) {
     expectSameSide(er, rotated, "rotated environment");
     expectSameSide(sr, rotated, "sun toward the rotated direction");
     EXPECT_GT(dot(normalize(er), normalize(sr)), 0.95);
+
+    // --up-axis z turns the image frame: the spot lies at upAxisToWorld(Z, toward).
+    const Vec3 zUp = upAxisToWorld(UpAxis::Z, toward);
+    bake({"--env", dir + "/spot.exr", "--up-axis", "z", "-o", dir + "/env_z.vdb"});
+    bake({"--sun", vec(zUp), "-o", dir + "/sun_z.vdb"});
+    const Vec3 ez = firstBand(dir + "/env_z.vdb"), sz = firstBand(dir + "/sun_z.vdb");
+    expectSameSide(ez, zUp, "Z-up environment");
+    EXPECT_GT(dot(normalize(ez), normalize(sz)), 0.95);
+    EXPECT_EQ(metaString(*readBakeFile(dir + "/env_z.vdb").meta, "lpm:up_axis"), "z");
+}
+
+// A sky (bright upper half of the image, dark lower half) lights a thick cube from the
+// scene's up axis: +Y by default, +Z with --up-axis z (a Blender or Mantaflow volume).
+TEST(Orientation, SkyLightsFromTheUpAxis) {
+    const std::string dir = lpmtest::scratchDir();
+    lpmtest::writeVdb(dir + "/cube.vdb", {lpmtest::cubeGrid(9, 2.0f)});
+    lpmtest::writeLatLong(dir + "/sky.exr", 64, 32, [](const Vec3& d) { return d.y > 0 ? RGB(1.f) : RGB(0.f); });
+    auto scatterAt = [&](const std::string& up, const openvdb::Coord& c) {
+        const std::string out = dir + "/sky_" + up + ".vdb";
+        const auto r = runLpmbake({dir + "/cube.vdb", "--env", dir + "/sky.exr", "--up-axis", up, "-o", out,
+                                   "--directions-per-face", "2", "--tolerance", "1e-2", "-q"},
+                                  dir);
+        EXPECT_EQ(r.code, 0) << r.err;
+        return readBakeFile(out).scatter->tree().getValue(c)[1];
+    };
+    const openvdb::Coord top(4, 8, 4), bottom(4, 0, 4), zTop(4, 4, 8), zBottom(4, 4, 0);
+    EXPECT_GT(scatterAt("y", top), 3 * scatterAt("y", bottom));
+    EXPECT_GT(scatterAt("z", zTop), 3 * scatterAt("z", zBottom));
+    // Under a Z-up sky the cube's +Y and -Y faces are sides: lit alike within 10%.
+    const float side1 = scatterAt("z", top), side2 = scatterAt("z", bottom);
+    EXPECT_NEAR(side1, side2, 0.1 * side1);
 }
 
 // An overhead sun lights the top of a thick cube more than its bottom (direction-averaged

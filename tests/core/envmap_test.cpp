@@ -93,3 +93,25 @@ TEST(EnvMap, SmoothLookupInterpolatesBetweenPixelCentres) {
     const Vec3 e{std::cos(lat) * std::sin(lon2), std::sin(lat), std::cos(lat) * std::cos(lon2)};
     EXPECT_NEAR(m.lookupSmooth(e).r, 2.5f, 1e-4);
 }
+
+TEST(EnvMap, UpAxisZTurnsTheZenithToPlusZ) {
+    std::vector<RGB> px;
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 8; ++x) px.push_back(RGB(float(x), float(y), 1.0f));
+    const EnvMap m(8, 4, px, 0.0, 1.0f, UpAxis::Z);
+    // The image's top row is world +Z, its bottom row world -Z.
+    EXPECT_EQ(m.lookup(Vec3{0, 0, 1}).g, 0.0f);
+    EXPECT_EQ(m.lookup(Vec3{0, 0, -1}).g, 3.0f);
+    // The image centre (longitude 0) faces world -Y; +X stays +X (column 2).
+    EXPECT_EQ(m.lookup(normalize(Vec3{0, -1, 0.1})).r, 4.0f);
+    EXPECT_EQ(m.lookup(normalize(Vec3{0, -1, 0.1})).g, 1.0f);
+    EXPECT_EQ(m.lookup(normalize(Vec3{1, 0, 0.1})).r, 2.0f);
+    // --env-rotate turns about the up axis: +90 brings the centre from -Y to +X.
+    const EnvMap r(8, 4, px, 90.0, 1.0f, UpAxis::Z);
+    EXPECT_EQ(r.lookup(normalize(Vec3{1, 0, 0.1})).r, 4.0f);
+    // upAxisToWorld is the same turn as the map's.
+    const Vec3 img = normalize(Vec3{0.3, 0.5, 0.8});
+    const Vec3 w = upAxisToWorld(UpAxis::Z, img);
+    EXPECT_EQ(m.lookup(w).r, EnvMap(8, 4, px).lookup(img).r);
+    EXPECT_EQ(m.lookup(w).g, EnvMap(8, 4, px).lookup(img).g);
+}
