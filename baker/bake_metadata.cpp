@@ -6,6 +6,7 @@
 #include "baker/text_format.h"
 #include "vdb_io/bake_digest.h"
 #include "vdb_io/bake_file.h"
+#include "vdb_io/bake_schema.h"
 
 namespace lpm {
 
@@ -78,54 +79,54 @@ std::string settingsDigest(const BakeOptions& o) {
 }
 
 openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, const LpmResult& res, const EnvInput& env,
-                              std::uint64_t sanitizedValues) {
+                              std::uint64_t sanitizedCount) {
     openvdb::MetaMap meta;
-    auto str = [&](const std::string& k, const std::string& v) { meta.insertMeta("lpm:" + k, openvdb::StringMetadata(v)); };
-    auto dbl = [&](const std::string& k, double v) { meta.insertMeta("lpm:" + k, openvdb::DoubleMetadata(v)); };
-    auto i32 = [&](const std::string& k, int v) { meta.insertMeta("lpm:" + k, openvdb::Int32Metadata(v)); };
-    auto rgb = [&](const std::string& k, const RGB& c) {
-        meta.insertMeta("lpm:" + k, openvdb::Vec3DMetadata(openvdb::Vec3d(c.r, c.g, c.b)));
-    };
-    i32("format_version", kBakeFormatVersion);
-    str("version", std::string("lpmbake ") + LPM_VERSION_STRING);
-    i32("sh_order", res.shOrder);
-    i32("sh_count", res.coeffs);
-    str("sh_basis", "real orthonormal spherical harmonics, ACN index k = l*l + l + m, no Condon-Shortley phase; "
+    using namespace bakekey;
+    auto str = [&](const MetaKey& k, const std::string& v) { putString(meta, k, v); };
+    auto dbl = [&](const MetaKey& k, double v) { putDouble(meta, k, v); };
+    auto i32 = [&](const MetaKey& k, int v) { putInt(meta, k, v); };
+    auto rgb = [&](const MetaKey& k, const RGB& c) { putVec3(meta, k, c.r, c.g, c.b); };
+    auto flag = [&](const MetaKey& k, bool v) { putBool(meta, k, v); };
+    i32(formatVersion, kBakeFormatVersion);
+    str(version, std::string("lpmbake ") + LPM_VERSION_STRING);
+    i32(shOrder, res.shOrder);
+    i32(bakekey::shCount, res.coeffs);
+    str(shBasis, "real orthonormal spherical harmonics, ACN index k = l*l + l + m, no Condon-Shortley phase; "
                     "Y0 = 0.282095, Y1 = 0.488603 y, Y2 = 0.488603 z, Y3 = 0.488603 x (solver_notes section 5); "
                     "directions in world space (the grids' transform frame)");
-    str("sh_grids", "sh_0 .. sh_" + std::to_string(res.coeffs - 1) + ": Vec3f, RGB in xyz");
-    str("sh_negative_lobes", "coefficients are not windowed; evaluating S may give small negative values: clamp "
+    str(shGrids, "sh_0 .. sh_" + std::to_string(res.coeffs - 1) + ": Vec3f, RGB in xyz");
+    str(shNegativeLobes, "coefficients are not windowed; evaluating S may give small negative values: clamp "
                              "at zero when shading (lpmbake render does)");
-    str("quantity", "S(x,w) = Int p(w,w') L(x,w') dw': phase-weighted in-scattered radiance, w = direction in "
+    str(quantity, "S(x,w) = Int p(w,w') L(x,w') dw': phase-weighted in-scattered radiance, w = direction in "
                     "which light travels; does not contain sigma_s");
-    str("usage", "renderer adds sigma_s(x)*S(x,-view) per unit length along a camera ray with direction view, "
+    str(usage, "renderer adds sigma_s(x)*S(x,-view) per unit length along a camera ray with direction view, "
                  "sigma_s = albedo * density * density_scale; scatter = direction-averaged S for shaders that use "
                  "it as emission (multiply by sigma_s)");
-    str("units", "S: radiance in the working colour space (environment pixels * env_scale, sun irradiance per "
+    str(units, "S: radiance in the working colour space (environment pixels * env_scale, sun irradiance per "
                  "steradian); lengths: world units of the grid transform; sigma_t = density * density_scale per "
                  "world unit");
-    str("frame", "world");
-    str("up_axis", upAxisName(o.upAxis));
-    str("working_colorspace", env.workingSpace.empty() ? o.workingSpace : env.workingSpace);
-    str("density_grid", o.noDensity ? "" : "density");
-    dbl("density_scale", o.densityScale);
-    rgb("albedo", o.albedo);
-    dbl("g", o.g);
-    str("phase_function", "Henyey-Greenstein");
+    str(frame, "world");
+    str(upAxis, upAxisName(o.upAxis));
+    str(workingColorspace, env.workingSpace.empty() ? o.workingSpace : env.workingSpace);
+    str(densityGrid, o.noDensity ? "" : "density");
+    dbl(densityScale, o.densityScale);
+    rgb(albedo, o.albedo);
+    dbl(g, o.g);
+    str(phaseFunction, "Henyey-Greenstein");
     std::string lightsDesc;
     if (!o.env.empty()) {
-        str("env_file", o.env);
-        str("env_colorspace", env.colorSpace);
-        dbl("env_rotate_y_deg", o.envRotateDeg);
-        dbl("env_scale", o.envScale);
-        str("env_orientation", o.upAxis == UpAxis::Z
+        str(envFile, o.env);
+        str(envColorspace, env.colorSpace);
+        dbl(envRotateYDeg, o.envRotateDeg);
+        dbl(envScale, o.envScale);
+        str(envOrientation, o.upAxis == UpAxis::Z
                                    ? "lat-long, OpenEXR ImfEnvmap convention, turned +90 deg about +X: zenith +Z, "
                                      "image centre toward -Y; env_rotate_y_deg turns it about +Z"
                                    : "lat-long, OpenEXR ImfEnvmap convention, +Y up");
         lightsDesc += "environment '" + o.env + "' (" + env.colorSpace + ", rotate " + fmt(o.envRotateDeg) +
                       " deg, scale " + fmt(o.envScale) + ")";
     }
-    i32("sun_count", int(o.suns.size()));
+    i32(sunCount, int(o.suns.size()));
     std::string sunsDesc;
     for (size_t i = 0; i < o.suns.size(); ++i) {
         const auto& s = o.suns[i];
@@ -133,70 +134,68 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
                     fmtRgb(s.irradiance) + " angle " + fmt(s.angleDeg) + " deg";
     }
     if (!o.suns.empty()) {
-        str("suns", sunsDesc);
+        str(suns, sunsDesc);
         lightsDesc += std::string(lightsDesc.empty() ? "" : "; ") + "suns: " + sunsDesc;
     }
     if (!o.temperatureGrid.empty()) {
-        str("temperature_grid", o.temperatureGrid);
-        dbl("temperature_scale", o.temperatureScale);
-        dbl("temperature_offset", o.temperatureOffset);
-        dbl("temperature_intensity", o.temperatureIntensity);
-        str("temperature_convention", "Kelvin = value * temperature_scale + temperature_offset; L_e = "
+        str(temperatureGrid, o.temperatureGrid);
+        dbl(temperatureScale, o.temperatureScale);
+        dbl(temperatureOffset, o.temperatureOffset);
+        dbl(temperatureIntensity, o.temperatureIntensity);
+        str(temperatureConvention, "Kelvin = value * temperature_scale + temperature_offset; L_e = "
                                       "temperature_intensity * black body (Planck x CIE 1931), 6500 K -> luminance 1, "
                                       "in the working colour space; written as grid 'emission'");
         lightsDesc += std::string(lightsDesc.empty() ? "" : "; ") + "temperature grid '" + o.temperatureGrid + "'";
     }
     if (!o.emissionGrid.empty()) {
-        str("emission_grid", o.emissionGrid);
-        dbl("emission_scale", o.emissionScale);
-        str("emission_convention", "emitted radiance L_e = value * emission_scale; source term sigma_a * L_e "
+        str(emissionGrid, o.emissionGrid);
+        dbl(emissionScale, o.emissionScale);
+        str(emissionConvention, "emitted radiance L_e = value * emission_scale; source term sigma_a * L_e "
                                    "(pbrt-v4); written as grid 'emission'");
         lightsDesc += std::string(lightsDesc.empty() ? "" : "; ") + "emission grid '" + o.emissionGrid + "'";
     }
-    str("lights", lightsDesc);
-    i32("directions_per_face", o.solver.directionsPerFace);
-    i32("rays_per_voxel", o.solver.raysPerVoxel);
-    i32("rays_higher_orders", o.solver.raysHigherOrders);
-    i32("bins_per_face", o.solver.binsPerFace);
-    dbl("tolerance", o.solver.tolerance);
-    i32("max_orders", o.solver.maxOrders);
-    i32("subdivide", o.solver.subdivide);
-    str("multires", o.solver.multires < 0 ? "auto" : (o.solver.multires ? "on" : "off"));
-    i32("multires_after", o.solver.multiresAfter);
-    str("source_shape", o.solver.linearSource < 0 ? "auto" : (o.solver.linearSource ? "linear" : "constant"));
-    str("delta_m", o.solver.deltaM < 0 ? "auto" : (o.solver.deltaM ? "on" : "off"));
-    dbl("env_hot_share", o.solver.envHotShare);
-    dbl("solve_scale", o.solveScale);
-    meta.insertMeta("lpm:solve_grid_dims",
-                    openvdb::Vec3IMetadata(openvdb::Vec3i(sum.solveDims[0], sum.solveDims[1], sum.solveDims[2])));
-    meta.insertMeta("lpm:solve_voxel_size", openvdb::Vec3DMetadata(openvdb::Vec3d(
-                                                 sum.solveVoxelSize.x, sum.solveVoxelSize.y, sum.solveVoxelSize.z)));
-    meta.insertMeta("lpm:krylov", openvdb::BoolMetadata(o.solver.krylov));
-    str("solver", "Light Propagation Maps (discrete ordinates, source iteration with GMRES acceleration); " +
+    str(lights, lightsDesc);
+    i32(directionsPerFace, o.solver.directionsPerFace);
+    i32(raysPerVoxel, o.solver.raysPerVoxel);
+    i32(raysHigherOrders, o.solver.raysHigherOrders);
+    i32(binsPerFace, o.solver.binsPerFace);
+    dbl(tolerance, o.solver.tolerance);
+    i32(maxOrders, o.solver.maxOrders);
+    i32(subdivide, o.solver.subdivide);
+    str(multires, o.solver.multires < 0 ? "auto" : (o.solver.multires ? "on" : "off"));
+    i32(multiresAfter, o.solver.multiresAfter);
+    str(sourceShape, o.solver.linearSource < 0 ? "auto" : (o.solver.linearSource ? "linear" : "constant"));
+    str(deltaM, o.solver.deltaM < 0 ? "auto" : (o.solver.deltaM ? "on" : "off"));
+    dbl(envHotShare, o.solver.envHotShare);
+    dbl(solveScale, o.solveScale);
+    putVec3i(meta, solveGridDims, sum.solveDims[0], sum.solveDims[1], sum.solveDims[2]);
+    putVec3(meta, solveVoxelSize, sum.solveVoxelSize.x, sum.solveVoxelSize.y, sum.solveVoxelSize.z);
+    flag(krylov, o.solver.krylov);
+    str(solver, "Light Propagation Maps (discrete ordinates, source iteration with GMRES acceleration); " +
                       std::to_string(res.directionCount) + " directions, " + std::to_string(res.binCount) +
                       " unshot bins");
-    i32("passes", sum.passes);
-    dbl("residual", res.residual);
-    meta.insertMeta("lpm:converged", openvdb::BoolMetadata(res.converged));
+    i32(passes, sum.passes);
+    dbl(residual, res.residual);
+    flag(converged, res.converged);
     std::string dec;
     for (const auto& d : res.decisions) dec += (dec.empty() ? "" : "; ") + d;
-    str("decisions", dec);
-    str("input_file", o.input);
-    str("input_grid", o.grid);
-    i32("input_grid_index", std::max(0, o.gridIndex));
-    meta.insertMeta("lpm:empty", openvdb::BoolMetadata(sum.empty));
-    meta.insertMeta("lpm:sanitized_values", openvdb::Int64Metadata(openvdb::Int64(sanitizedValues)));
-    str("storage", o.half ? "half" : "float32");
-    dbl("time_read_s", sum.secondsRead);
-    dbl("time_env_s", sum.secondsEnv);
-    dbl("time_solve_s", sum.secondsSolve);
-    str("timings", "read " + fmt(sum.secondsRead) + " s, environment " + fmt(sum.secondsEnv) + " s, solve " +
+    str(decisions, dec);
+    str(inputFile, o.input);
+    str(inputGrid, o.grid);
+    i32(inputGridIndex, std::max(0, o.gridIndex));
+    flag(empty, sum.empty);
+    putInt64(meta, sanitizedValues, std::int64_t(sanitizedCount));
+    str(storage, o.half ? "half" : "float32");
+    dbl(timeReadS, sum.secondsRead);
+    dbl(timeEnvS, sum.secondsEnv);
+    dbl(timeSolveS, sum.secondsSolve);
+    str(timings, "read " + fmt(sum.secondsRead) + " s, environment " + fmt(sum.secondsEnv) + " s, solve " +
                        fmt(sum.secondsSolve) + " s");
-    if (!o.commandLine.empty()) str("command_line", o.commandLine);
-    i32("sun_term_count", int(res.sunTerms.size()));
+    if (!o.commandLine.empty()) str(commandLine, o.commandLine);
+    i32(sunTermCount, int(res.sunTerms.size()));
     if (!res.sunTerms.empty()) {
-        dbl("sun_term_g", o.g);
-        str("sun_term_convention",
+        dbl(sunTermG, o.g);
+        str(sunTermConvention,
             "exact single scattering of each sun K, not in the SH grids: S(x, w) += E_K T_K(x) p_HG(g; dot(-toward_K, "
             "w)), w = direction the scattered light travels (S(x, -view) for a camera ray along view), T_K = grid "
             "sun_transmittance_K (voxel mean of the beam's transmittance), E_K = lpm:sun_term_K_irradiance, g = "
@@ -204,15 +203,14 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
     }
     for (size_t k = 0; k < res.sunTerms.size(); ++k) {
         const SunTerm& t = res.sunTerms[k];
-        const std::string p = "sun_term_" + std::to_string(k) + "_";
-        meta.insertMeta("lpm:" + p + "toward", openvdb::Vec3DMetadata(openvdb::Vec3d(t.toSun.x, t.toSun.y, t.toSun.z)));
-        rgb(p + "irradiance", t.irradiance);
-        dbl(p + "angle_deg", t.angularDiameterDeg);
-        str(p + "source", t.fromEnvironment ? "environment hot pixel" : "--sun");
-        str(p + "grid", sunTransmittanceGridName(int(k)));
+        putVec3(meta, sunTermKey(int(k), SunTermField::Toward), t.toSun.x, t.toSun.y, t.toSun.z);
+        rgb(sunTermKey(int(k), SunTermField::Irradiance), t.irradiance);
+        dbl(sunTermKey(int(k), SunTermField::AngleDeg), t.angularDiameterDeg);
+        str(sunTermKey(int(k), SunTermField::Source), t.fromEnvironment ? "environment hot pixel" : "--sun");
+        str(sunTermKey(int(k), SunTermField::Grid), sunTransmittanceGridName(int(k)));
     }
-    str("settings", canonicalSettings(o));
-    str("settings_digest", settingsDigest(o));
+    str(settings, canonicalSettings(o));
+    str(bakekey::settingsDigest, lpm::settingsDigest(o));
     return meta;
 }
 

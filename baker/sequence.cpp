@@ -12,6 +12,7 @@
 #include "baker/bake_metadata.h"
 #include "baker/frame_pattern.h"
 #include "baker/peak_memory.h"
+#include "vdb_io/bake_schema.h"
 #include "baker/text_format.h"
 #include "vdb_io/atomic_file.h"
 #include "vdb_io/bake_file.h"
@@ -212,7 +213,7 @@ std::string pendingReason(const BakeOptions& o) {
         const BakeFile f = readBakeFile(o.output);
         const std::vector<std::string> problems = validateBake(f);
         if (!problems.empty()) return "the output is not a valid bake: " + problems.front();
-        const std::string digest = metaString(*f.meta, "lpm:settings_digest", "");
+        const std::string digest = getString(*f.meta, bakekey::settingsDigest, "");
         if (digest != settingsDigest(o))
             return digest.empty() ? "the output records no settings digest (made by an older lpmbake)"
                                   : "the output was made with other settings (lpm:settings_digest " + digest + ")";

@@ -345,17 +345,6 @@ std::vector<McVoxelEstimate> mcVoxelSH(const Medium& m, const Lights& lights, co
     return out;
 }
 
-Vec3 PinholeCamera::rayDirection(double px, double py) const {
-    const Vec3 f = normalize(target - eye);
-    const Vec3 r = normalize(cross(f, up));
-    const Vec3 u = cross(r, f);
-    const double th = std::tan(0.5 * fovYDeg * kPi / 180.0);
-    const double aspect = double(width) / height;
-    const double sx = (2 * (px / width) - 1) * th * aspect;
-    const double sy = (1 - 2 * (py / height)) * th;
-    return normalize(f + r * sx + u * sy);
-}
-
 McImage mcRenderImage(const Medium& m, const Lights& lights, const PinholeCamera& cam, int spp, const McSettings& s) {
     m.validate();
     if (cam.width <= 0 || cam.height <= 0) throw Error("MC", "image size must be positive");

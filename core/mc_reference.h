@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/camera.h"
 #include "core/medium.h"
 
 namespace lpm {
@@ -31,14 +32,6 @@ struct McVoxelEstimate {
 /// SH coefficients (orders 0..shOrder) of S averaged over each listed voxel.
 std::vector<McVoxelEstimate> mcVoxelSH(const Medium& medium, const Lights& lights, const std::vector<size_t>& voxels,
                                        int samplesPerVoxel, int shOrder, const McSettings& settings = {});
-
-struct PinholeCamera {
-    Vec3 eye{0, 0, 5}, target{0, 0, 0}, up{0, 1, 0};
-    double fovYDeg = 40;
-    int width = 64, height = 64;
-    /// World-space direction through pixel coordinates (px, py) (py = 0 is the top row).
-    Vec3 rayDirection(double px, double py) const;
-};
 
 struct McImage {
     int width = 0, height = 0;

@@ -1,5 +1,6 @@
 // Writing and reading the baked VDB (see bake_file.h for the layout).
 #include "vdb_io/bake_file.h"
+#include "vdb_io/bake_schema.h"
 
 #include <algorithm>
 #include <chrono>
@@ -221,8 +222,8 @@ BakeFile readBakeFile(const std::string& path) {
     VdbFile file(path);
     f.meta = file.fileMetadata();
     f.grids = file.readAllGrids();
-    f.shOrder = metaInt(*f.meta, "lpm:sh_order", -1);
-    std::string densityName = metaString(*f.meta, "lpm:density_grid", "density");
+    f.shOrder = getInt(*f.meta, bakekey::shOrder, -1);
+    std::string densityName = getString(*f.meta, bakekey::densityGrid, "density");
     for (int k = 0;; ++k) {
         openvdb::Vec3SGrid::Ptr g;
         for (auto& base : f.grids)
@@ -247,11 +248,15 @@ BakeFile readBakeFile(const std::string& path) {
 
 std::vector<std::string> validateBake(const BakeFile& f) {
     std::vector<std::string> why;
-    const int version = metaInt(*f.meta, "lpm:format_version", -1);
-    if (version < 0) why.push_back("no lpm:format_version metadata (not written by lpmbake)");
-    else if (version > kBakeFormatVersion)
+    const int version = getInt(*f.meta, bakekey::formatVersion, -1);
+    if (version < 0) {
+        why.push_back("no lpm:format_version metadata (not written by lpmbake)");
+        return why;
+    }
+    if (version > kBakeFormatVersion)
         why.push_back("lpm:format_version " + std::to_string(version) + " is newer than this lpmbake reads (" +
                       std::to_string(kBakeFormatVersion) + ")");
+    for (const std::string& p : schemaProblems(*f.meta, false)) why.push_back(p);
     if (f.shOrder < 0 || f.shOrder > kMaxShOrder) {
         why.push_back("missing or invalid lpm:sh_order");
     } else if (int(f.sh.size()) < shCount(f.shOrder)) {
@@ -260,23 +265,15 @@ std::vector<std::string> validateBake(const BakeFile& f) {
                       std::to_string(f.sh.size()));
     }
     if (!f.scatter) why.push_back("no Vec3f grid named 'scatter'");
-    const std::string dn = metaString(*f.meta, "lpm:density_grid", "");
+    const std::string dn = getString(*f.meta, bakekey::densityGrid, "");
     if (!dn.empty() && !f.density) why.push_back("lpm:density_grid names '" + dn + "' but there is no such float grid");
     for (const auto& g : f.sh)
         if (g->transform() != f.sh.front()->transform())
             why.push_back("grid '" + g->getName() + "' has a different transform from sh_0");
-    const int suns = metaInt(*f.meta, "lpm:sun_term_count", 0);
+    const int suns = getInt(*f.meta, bakekey::sunTermCount, 0);
     if (suns != int(f.sunTransmittance.size()))
         why.push_back("lpm:sun_term_count is " + std::to_string(suns) + " but the file has " +
                       std::to_string(f.sunTransmittance.size()) + " float grids sun_transmittance_0..");
-    for (int k = 0; k < suns && k < int(f.sunTransmittance.size()); ++k) {
-        const std::string p = "lpm:sun_term_" + std::to_string(k) + "_";
-        if (!f.meta->getMetadata<openvdb::Vec3DMetadata>(p + "toward") ||
-            !f.meta->getMetadata<openvdb::Vec3DMetadata>(p + "irradiance"))
-            why.push_back("exact sun term " + std::to_string(k) + " lacks " + p + "toward or " + p + "irradiance");
-    }
-    if (suns > 0 && !f.meta->getMetadata<openvdb::DoubleMetadata>("lpm:sun_term_g"))
-        why.push_back("exact sun terms without lpm:sun_term_g");
     return why;
 }
 

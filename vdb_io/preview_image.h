@@ -1,0 +1,20 @@
+// Writing a preview image (`lpmbake render`): EXR keeps scene-linear values in the working
+// colour space (with its chromaticities), PNG gets the OCIO config's default sRGB view.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "vdb_io/atomic_file.h"
+
+namespace lpm {
+
+/// True for a path ending in .exr or .png (case-insensitive), the formats writePreviewImage takes.
+bool isPreviewImagePath(const std::string& path);
+
+/// Writes `rgb` ([pixel][rgb], row 0 at the top) through `out` and commits it. The format
+/// follows the final path's extension. Throws OutputError.
+void writePreviewImage(AtomicOutput& out, std::vector<float> rgb, int width, int height,
+                       const std::string& workingSpace);
+
+}  // namespace lpm
