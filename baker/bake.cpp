@@ -11,7 +11,7 @@
 #include "baker/bake_metadata.h"
 #include "baker/options.h"
 #include "baker/peak_memory.h"
-#include "baker/sidecar.h"
+#include "baker/stats_json.h"
 #include "baker/text_format.h"
 #include "core/lpm_cache.h"
 #include "core/parallel.h"
@@ -20,6 +20,7 @@
 #include "vdb_io/bake_file.h"
 #include "vdb_io/env_reader.h"
 #include "vdb_io/io_error.h"
+#include "vdb_io/sidecar.h"
 #include "vdb_io/volume_reader.h"
 
 namespace lpm {
@@ -38,149 +39,26 @@ std::string fmtDims(const int d[3]) {
 }
 
 
-void checkOptions(const BakeOptions& o) {
-    if (o.input.empty()) throw UsageError("no input VDB given");
-    if (o.output.empty()) throw UsageError("no output given (-o OUT.vdb)");
-    if (o.env.empty() && o.suns.empty() && o.emissionGrid.empty() && o.temperatureGrid.empty())
-        throw UsageError("no light: give --env, --sun or --emission-grid");
-    if (!(o.densityScale >= 0) || !std::isfinite(o.densityScale))
-        throw UsageError("--density-scale must be finite and non-negative, got " + fmt(o.densityScale));
-    for (int c = 0; c < 3; ++c)
-        if (!(o.albedo[c] >= 0 && o.albedo[c] <= 1))
-            throw UsageError("--albedo must lie in [0, 1], got " + fmtRgb(o.albedo));
-    if (!(o.g > -1 && o.g < 1)) throw UsageError("--g must lie in (-1, 1), got " + fmt(o.g));
-    for (const auto& s : o.suns) {
-        if (!(length(s.toSun) > 0) || !std::isfinite(length(s.toSun)))
-            throw UsageError("--sun direction must be non-zero and finite, got " + fmtVec(s.toSun));
-        for (int c = 0; c < 3; ++c)
-            if (!(s.irradiance[c] >= 0) || !std::isfinite(s.irradiance[c]))
-                throw UsageError("--sun-irradiance must be finite and non-negative, got " + fmtRgb(s.irradiance));
-        if (!(s.angleDeg >= 0 && s.angleDeg < 180))
-            throw UsageError("--sun-angle must be in [0, 180) degrees, got " + fmt(s.angleDeg));
-    }
-    if (o.threads < 0) throw UsageError("--threads must be 0 (all cores) or positive, got " + std::to_string(o.threads));
-    const LpmSettings& s = o.solver;
-    if (s.directionsPerFace < 1 || s.directionsPerFace > 64)
-        throw UsageError("--directions-per-face must be in 1..64, got " + std::to_string(s.directionsPerFace));
-    if (s.raysPerVoxel < 1 || s.raysPerVoxel > 16) throw UsageError("--rays-per-voxel must be in 1..16");
-    if (s.raysHigherOrders != -1 && (s.raysHigherOrders < 1 || s.raysHigherOrders > 16))
-        throw UsageError("--rays-higher-orders must be -1 (auto) or in 1..16, got " + std::to_string(s.raysHigherOrders));
-    if (s.binsPerFace < -1) throw UsageError("--bins-per-face must be -1 (auto), 0 or more");
-    if (s.shOrder < 0 || s.shOrder > kMaxShOrder) throw UsageError("--sh-order must be in 0..3");
-    if (!(s.tolerance > 0)) throw UsageError("--tolerance must be positive");
-    if (s.maxOrders < 1) throw UsageError("--max-orders must be >= 1");
-    // Below 0.05 a solve voxel spans more than 20 input voxels (nothing of the volume's
-    // shape survives); above 8 the block grows 512x for no added detail (the medium is
-    // piecewise constant on the input's voxels).
-    if (!std::isfinite(o.solveScale) || o.solveScale < 0.05 || o.solveScale > 8)
-        throw UsageError("--solve-scale must be finite and in [0.05, 8], got " + fmt(o.solveScale));
-    if (s.subdivide < 1 || s.subdivide > 8) throw UsageError("--subdivide must be in 1..8, got " + std::to_string(s.subdivide));
-    if (s.binsPerFace > 0 && s.directionsPerFace % s.binsPerFace != 0)
-        throw UsageError("--bins-per-face " + std::to_string(s.binsPerFace) + " must divide --directions-per-face " +
-                         std::to_string(s.directionsPerFace));
-    if (!(o.envScale >= 0) || !std::isfinite(o.envScale)) throw UsageError("--env-scale must be finite and >= 0");
+/// The CLI flag of a settings field (SettingError::field()), for errors in the user's words.
+std::string flagOf(const std::string& field) {
+    static const std::pair<const char*, const char*> flags[] = {
+        {"densityScale", "--density-scale"}, {"emissionScale", "--emission-scale"},
+        {"temperatureScale", "--temperature-scale"}, {"temperatureOffset", "--temperature-offset"},
+        {"temperatureIntensity", "--temperature-intensity"}, {"solveScale", "--solve-scale"},
+        {"maxDenseVoxels", "--max-voxels"}, {"scale", "--env-scale"}, {"rotateYDeg", "--env-rotate"},
+        {"albedo", "--albedo"}, {"g", "--g"}, {"toSun", "--sun"}, {"irradiance", "--sun-irradiance"},
+        {"angularDiameterDeg", "--sun-angle"}, {"directionsPerFace", "--directions-per-face"},
+        {"raysPerVoxel", "--rays-per-voxel"}, {"raysHigherOrders", "--rays-higher-orders"},
+        {"binsPerFace", "--bins-per-face"}, {"shOrder", "--sh-order"}, {"tolerance", "--tolerance"},
+        {"maxOrders", "--max-orders"}, {"subdivide", "--subdivide"}, {"multires", "--multires"},
+        {"multiresAfter", "--multires-after"}, {"linearSource", "--source"}, {"deltaM", "--delta-m"},
+        {"envHotShare", "--env-hot-share"}};
+    for (const auto& f : flags)
+        if (field == f.first) return f.second;
+    return field;  // a setting without a flag (only reachable from the library)
 }
 
-/// The effect planner's plan with its predicted costs, and the measured cost of each stage
-/// of the solve (docs/solve_plan.md).
-void writePlanAndStages(std::ostream& j, const LpmResult& r) {
-    const SolvePlan& p = r.plan;
-    j << "  \"plan\": {\"predicted_fine_pass_segments\": " << p.predictedSegmentsPerFinePass
-      << ", \"predicted_fine_pass_s\": " << p.predictedSecondsPerFinePass
-      << ", \"predicted_buffers_mib\": " << p.predictedBytes / (1 << 20) << ", \"decisions\": [";
-    for (size_t i = 0; i < p.decisions.size(); ++i) {
-        const PlanDecision& d = p.decisions[i];
-        j << (i ? "," : "") << "\n    {\"decision\": \"" << jsonEscape(d.what) << "\", \"reason\": \"" << jsonEscape(d.why)
-          << "\"";
-        if (d.predictedSeconds >= 0) j << ", \"predicted_s\": " << d.predictedSeconds;
-        if (d.predictedBytes >= 0) j << ", \"predicted_mib\": " << d.predictedBytes / (1 << 20);
-        j << "}";
-    }
-    j << "]},\n";
-    double single = 0, fine = 0, coarse = 0, krylov = 0, firstFine = -1;
-    std::uint64_t firstFineSegments = 0;
-    for (const PassStats& ps : r.passes) {
-        if (ps.pass == 0) single += ps.seconds;
-        else if (ps.coarse) coarse += ps.seconds;
-        else if (ps.krylov) krylov += ps.seconds;
-        else fine += ps.seconds;
-        if (ps.pass > 0 && !ps.coarse && firstFine < 0) {
-            firstFine = ps.seconds;
-            firstFineSegments = ps.segments;
-        }
-    }
-    j << "  \"stages_s\": {\"single_scattering\": " << single << ", \"sun_terms\": " << r.sunTermSeconds
-      << ", \"fine_orders\": " << fine << ", \"coarse_orders\": " << coarse << ", \"gmres\": " << krylov
-      << ", \"first_fine_pass\": " << std::max(0.0, firstFine) << ", \"first_fine_pass_segments\": " << firstFineSegments
-      << "},\n";
-}
-
-void writeStats(const BakeOptions& o, const BakeSummary& s, const LpmResult* r) {
-    std::ostringstream j;
-    j << std::setprecision(9);
-    j << "{\n  \"tool\": \"lpmbake " << LPM_VERSION_STRING << "\",\n";
-    j << "  \"input\": \"" << jsonEscape(o.input) << "\",\n  \"grid\": \"" << jsonEscape(o.grid) << "\",\n";
-    j << "  \"output\": \"" << jsonEscape(o.output) << "\",\n";
-    j << "  \"threads\": " << maxThreads() << ",\n";
-    j << "  \"empty\": " << (s.empty ? "true" : "false") << ",\n";
-    j << "  \"voxels\": {\"active\": " << s.activeVoxels << ", \"stored\": " << s.denseVoxels
-      << ", \"bounding_box\": " << s.boxVoxels << "},\n";
-    j << "  \"tiles\": {\"size\": " << Medium::kTile << ", \"stored\": " << s.tilesStored << ", \"in_box\": " << s.tilesInBox
-      << "},\n";
-    j << "  \"solve_grid\": {\"solve_scale\": " << s.solveScale << ", \"dims\": [" << s.solveDims[0] << ", "
-      << s.solveDims[1] << ", " << s.solveDims[2] << "], \"voxel_size\": [" << s.solveVoxelSize.x << ", "
-      << s.solveVoxelSize.y << ", " << s.solveVoxelSize.z << "]},\n";
-    j << "  \"timings_s\": {\"read\": " << s.secondsRead << ", \"environment\": " << s.secondsEnv
-      << ", \"solve\": " << s.secondsSolve << ", \"write\": " << s.secondsWrite << ", \"total\": " << s.secondsTotal
-      << "},\n";
-    j << "  \"sh_order\": " << s.shOrder << ",\n  \"passes\": " << s.passes << ",\n";
-    j << "  \"residual\": " << s.residual << ",\n  \"converged\": " << (s.converged ? "true" : "false") << ",\n";
-    j << "  \"ray_segments\": " << s.segments << ",\n";
-    j << "  \"ray_segments_per_second\": " << (s.secondsSolve > 0 ? double(s.segments) / s.secondsSolve : 0.0)
-      << ",\n";
-    j << "  \"peak_rss_mib\": " << double(s.peakRssKiB) / 1024.0 << ",\n";
-    j << "  \"pass_stats\": [";
-    if (r)
-        for (size_t i = 0; i < r->passes.size(); ++i) {
-            const PassStats& p = r->passes[i];
-            j << (i ? "," : "") << "\n    {\"pass\": " << p.pass << ", \"injected\": " << p.injected
-              << ", \"scattered\": " << p.scattered << ", \"absorbed\": " << p.absorbed << ", \"escaped\": "
-              << p.escaped << ", \"seconds\": " << p.seconds << ", \"krylov\": " << (p.krylov ? "true" : "false")
-              << ", \"coarse\": " << (p.coarse ? "true" : "false") << ", \"segments\": " << p.segments << "}";
-        }
-    j << "\n  ],\n";
-    if (r) writePlanAndStages(j, *r);
-    j << "  \"decisions\": [";
-    if (r)
-        for (size_t i = 0; i < r->decisions.size(); ++i)
-            j << (i ? ", " : "") << "\"" << jsonEscape(r->decisions[i]) << "\"";
-    j << "]\n}\n";
-
-    AtomicOutput out(o.statsPath, {o.input, o.env, o.output});
-    {
-        std::ofstream f(out.tempPath());
-        f << j.str();
-        f.close();
-        if (!f) throw OutputError("stats", "cannot write '" + out.tempPath() + "'");
-    }
-    out.commit();
-}
-
-}  // namespace
-
-BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) {
-    checkOptions(o);
-    const auto tStart = Clock::now();
-    ThreadLimit limit(o.threads);
-    BakeSummary sum;
-    sum.threads = maxThreads();
-    {
-        // Fail on an impossible output path before the expensive work.
-        AtomicOutput probe(o.output, {o.input, o.env});
-    }
-
-    // 1. Volume.
-    auto t = Clock::now();
+VolumeReadOptions volumeReadOptions(const BakeOptions& o) {
     VolumeReadOptions vo;
     vo.path = o.input;
     vo.gridName = o.grid;
@@ -197,7 +75,49 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
     vo.workingSpace = o.workingSpace;
     vo.maxDenseVoxels = o.maxVoxels;
     vo.solveScale = o.solveScale;
-    VolumeInput vol = readVolume(vo);
+    return vo;
+}
+
+EnvReadOptions envReadOptions(const BakeOptions& o) {
+    EnvReadOptions eo;
+    eo.path = o.env;
+    eo.colorSpace = o.envColorSpace;
+    eo.workingSpace = o.workingSpace;
+    eo.rotateYDeg = o.envRotateDeg;
+    eo.scale = o.envScale;
+    eo.up = o.upAxis;
+    eo.sanitize = o.sanitize;
+    return eo;
+}
+
+Sun toSun(const SunOption& s) { return Sun{normalize(s.toSun), s.irradiance, s.angleDeg}; }
+
+/// What the command needs, then every settings struct's own range rules (the library is
+/// their one home), with the failing field named by its flag.
+void checkOptions(const BakeOptions& o) {
+    if (o.input.empty()) throw UsageError("no input VDB given");
+    if (o.output.empty()) throw UsageError("no output given (-o OUT.vdb)");
+    if (o.env.empty() && o.suns.empty() && o.emissionGrid.empty() && o.temperatureGrid.empty())
+        throw UsageError("no light: give --env, --sun or --emission-grid");
+    if (o.threads < 0) throw UsageError("--threads must be 0 (all cores) or positive, got " + std::to_string(o.threads));
+    try {
+        volumeReadOptions(o).validate();
+        envReadOptions(o).validate();
+        validateMaterial(o.albedo, o.g);
+        for (const SunOption& s : o.suns) {
+            Sun sun{s.toSun, s.irradiance, s.angleDeg};
+            sun.validate();
+        }
+        o.solver.validate();
+    } catch (const SettingError& e) {
+        throw UsageError(flagOf(e.field()) + " " + e.rule());
+    }
+}
+
+/// 1. The volume, resampled into the dense solve block.
+VolumeInput readVolumeStage(const BakeOptions& o, BakeSummary& sum, const Log& log) {
+    const auto t = Clock::now();
+    VolumeInput vol = readVolume(volumeReadOptions(o));
     for (const auto& w : vol.warnings) log.warn(w);
     sum.secondsRead = since(t);
     sum.empty = vol.empty;
@@ -217,85 +137,77 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
                  " (--solve-scale " + fmt(o.solveScale) + "; input voxel size " +
                  fmtVoxelSize(vol.medium.voxelSize * o.solveScale) + ")");
     log.debug("read " + o.input + ": " + std::to_string(vol.activeVoxels) + " active voxels, block " +
-              std::to_string(vol.medium.nx) + "x" + std::to_string(vol.medium.ny) + "x" +
-              std::to_string(vol.medium.nz) + " in 8^3 tiles (" + std::to_string(sum.tilesStored) + " of " +
+              fmtDims(sum.solveDims) + " in 8^3 tiles (" + std::to_string(sum.tilesStored) + " of " +
               std::to_string(sum.tilesInBox) + " stored), voxel size " + fmtVec(vol.medium.voxelSize));
+    vol.medium.albedo = o.albedo;
+    vol.medium.g = o.g;
+    return vol;
+}
 
-    // 2. Lights.
-    t = Clock::now();
-    std::shared_ptr<EnvInput> envHeld = std::make_shared<EnvInput>();
-    if (!o.env.empty()) {
-        EnvReadOptions eo;
-        eo.path = o.env;
-        eo.colorSpace = o.envColorSpace;
-        eo.workingSpace = o.workingSpace;
-        eo.rotateYDeg = o.envRotateDeg;
-        eo.scale = o.envScale;
-        eo.up = o.upAxis;
-        eo.sanitize = o.sanitize;
-        const std::string key = o.env + "\n" + o.envColorSpace + "\n" + o.workingSpace + "\n" +
-                                fmtExact(o.envRotateDeg) + "\n" + fmtExact(o.envScale) + "\n" + upAxisName(o.upAxis) + "\n" +
-                                std::to_string(o.sanitize);
-        if (context && context->env && context->envKey == key) {
-            envHeld = context->env;
-            sum.envReused = true;
-        } else {
-            *envHeld = readEnvironment(eo);
-            for (const auto& w : envHeld->warnings) log.warn(w);
-            log.debug("environment " + o.env + ": " + std::to_string(envHeld->width) + "x" +
-                      std::to_string(envHeld->height) + ", " + envHeld->colorSpace + " -> " + envHeld->workingSpace);
-            if (context) {
-                // The solver's binnings of the old map are keyed by its address: drop them
-                // before the map goes.
-                if (context->solverCache) context->solverCache->forgetEnvironments();
-                context->env = envHeld;
-                context->envKey = key;
-                ++context->envReads;
-            }
-        }
+/// 2. The environment: read and converted, or the sequence's copy when the same file and
+/// options were read for an earlier frame.
+std::shared_ptr<EnvInput> readEnvironmentStage(const BakeOptions& o, BakeContext* context, BakeSummary& sum,
+                                               const Log& log) {
+    const auto t = Clock::now();
+    auto envHeld = std::make_shared<EnvInput>();
+    if (o.env.empty()) return envHeld;
+    const std::string key = o.env + "\n" + o.envColorSpace + "\n" + o.workingSpace + "\n" + fmtExact(o.envRotateDeg) +
+                            "\n" + fmtExact(o.envScale) + "\n" + upAxisName(o.upAxis) + "\n" + std::to_string(o.sanitize);
+    if (context && context->env && context->envKey == key) {
+        sum.envReused = true;
+        sum.secondsEnv = since(t);
+        return context->env;
     }
-    const EnvInput& env = *envHeld;
-    sum.secondsEnv = since(t);
-    Lights lights;
-    lights.env = env.env.get();
-    for (const auto& s : o.suns) lights.suns.push_back(Sun{normalize(s.toSun), s.irradiance, s.angleDeg});
-
-    Medium& m = vol.medium;
-    m.albedo = o.albedo;
-    m.g = o.g;
-
-    // 3. Solve.
-    LpmResult res;
-    LpmSettings settings = o.solver;
-    // The exact sun term pays where SH cannot hold a sun's single scattering: any g != 0
-    // (at g = 0 the phase is isotropic and SH order 0 holds it exactly).
-    settings.sunTerms = o.sunTerm == 1 || (o.sunTerm < 0 && o.g != 0.0);
+    *envHeld = readEnvironment(envReadOptions(o));
+    for (const auto& w : envHeld->warnings) log.warn(w);
+    log.debug("environment " + o.env + ": " + std::to_string(envHeld->width) + "x" + std::to_string(envHeld->height) +
+              ", " + envHeld->colorSpace + " -> " + envHeld->workingSpace);
     if (context) {
-        if (!context->solverCache) context->solverCache = std::make_shared<LpmCache>();
-        settings.cache = context->solverCache;
-    } else {
-        settings.cache = std::make_shared<LpmCache>();  // the plan's environment binning, reused by the solve
+        // The solver's binnings of the old map are keyed by its address: drop them before
+        // the map goes.
+        if (context->solverCache) context->solverCache->forgetEnvironments();
+        context->env = envHeld;
+        context->envKey = key;
+        ++context->envReads;
     }
-    // Progress: every pass with -v; otherwise, once the solve has run for a second, at
-    // most one line a second (farm logs stay short, long interactive runs show life).
-    const auto solveStart = Clock::now();
-    auto lastShown = solveStart;
+    sum.secondsEnv = since(t);
+    return envHeld;
+}
+
+/// The solver's settings for this bake: the exact sun term where SH cannot hold a sun's
+/// single scattering (any g != 0), the shared cache, and progress lines: every pass with
+/// -v; otherwise, once the solve has run a second, at most one line a second.
+LpmSettings solveSettings(const BakeOptions& o, BakeContext* context, const Log& log) {
+    LpmSettings settings = o.solver;
+    settings.sunTerms = o.sunTerm == 1 || (o.sunTerm < 0 && o.g != 0.0);
+    if (context && !context->solverCache) context->solverCache = std::make_shared<LpmCache>();
+    // Without a sequence the cache still holds the plan's environment binning for the solve.
+    settings.cache = context ? context->solverCache : std::make_shared<LpmCache>();
     if (log.verbosity >= 2) {
-        settings.progress = [&](const std::string& p) { log.debug(p); };
+        settings.progress = [&log](const std::string& p) { log.debug(p); };
     } else if (log.verbosity >= 1) {
-        settings.progress = [&](const std::string& p) {
+        const auto start = Clock::now();
+        auto lastShown = std::make_shared<Clock::time_point>(start);
+        settings.progress = [&log, start, lastShown](const std::string& p) {
             const auto now = Clock::now();
-            if (std::chrono::duration<double>(now - solveStart).count() < 1.0) return;
-            if (lastShown != solveStart && std::chrono::duration<double>(now - lastShown).count() < 1.0) return;
-            lastShown = now;
+            if (std::chrono::duration<double>(now - start).count() < 1.0) return;
+            if (*lastShown != start && std::chrono::duration<double>(now - *lastShown).count() < 1.0) return;
+            *lastShown = now;
             log.note(p);
         };
     }
-    t = Clock::now();
+    return settings;
+}
+
+/// 3. The solve (with -v the plan first), or the empty result of an empty volume.
+LpmResult solveStage(const BakeOptions& o, const VolumeInput& vol, const Lights& lights, const LpmSettings& settings,
+                     BakeSummary& sum, const Log& log) {
+    const auto t = Clock::now();
+    LpmResult res;
     if (!vol.empty) {
         if (log.verbosity >= 2)
-            for (const std::string& line : planLpm(m, lights, settings).lines(true)) log.debug("plan: " + line);
-        res = solveLpm(m, lights, settings);
+            for (const std::string& line : planLpm(vol.medium, lights, settings).lines(true)) log.debug("plan: " + line);
+        res = solveLpm(vol.medium, lights, settings);
         // With -v the plan was printed before the solve: after it, only what the solve met.
         const std::vector<std::string> planned = log.verbosity >= 2 ? res.plan.lines() : std::vector<std::string>{};
         for (const auto& d : res.decisions)
@@ -314,8 +226,13 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
     if (!vol.empty && !res.converged)
         log.warn("the solver stopped after " + std::to_string(sum.passes) + " passes with residual " +
                  fmt(res.residual) + " above --tolerance " + fmt(o.solver.tolerance) + " (raise --max-orders)");
+    return res;
+}
 
-    // The suns' single scattering leaves the SH for the exact terms; `scatter` keeps it.
+/// 4. The suns' single scattering leaves the SH for the exact terms; the returned
+/// direction-averaged `scatter` keeps it (empty: scatter = sh_0 Y00).
+std::vector<float> separateSunTerms(const BakeOptions& o, bool sunTermsAsked, bool emptyVolume, LpmResult& res,
+                                    BakeSummary& sum, const Log& log) {
     std::vector<float> scatter;
     if (!res.sunTerms.empty()) {
         scatter.resize(res.sh.size() / res.coeffs);
@@ -326,17 +243,18 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
                                 " sun(s) kept out of the SH and stored as transmittance grids (g = " + fmt(o.g) +
                                 ": no low SH order holds the phase lobe of a sun's single scattering)");
         log.note(res.decisions.back());
-    } else if (!vol.empty && !lights.suns.empty() && !settings.sunTerms) {
+    } else if (!emptyVolume && !o.suns.empty() && !sunTermsAsked) {
         res.decisions.push_back(o.g == 0.0 ? "no exact sun term: g = 0, SH order 0 holds isotropic single scattering "
                                              "exactly"
                                            : "no exact sun term (--sun-term off): suns' single scattering through SH");
     }
     sum.sunTerms = int(res.sunTerms.size());
+    return scatter;
+}
 
-    // 4. Metadata: everything a consumer needs to use the bake without this tool.
-    const openvdb::MetaMap meta = bakeMetadata(o, sum, res, env, vol.sanitized + env.sanitized);
-
-    // 5. Write.
+/// 5. What the writer needs: the solve block's place in the input and its values.
+DenseBake denseBake(const VolumeInput& vol, const LpmResult& res, const std::vector<float>& scatter) {
+    const Medium& m = vol.medium;
     DenseBake db;
     db.blockMin = vol.blockMin;
     db.scale = vol.solveGrid.scale;
@@ -353,13 +271,47 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
     db.scatter = scatter.empty() ? nullptr : scatter.data();
     for (const SunTerm& t : res.sunTerms) db.sunTransmittance.push_back(t.transmittance.data());
     db.layout = vol.empty ? nullptr : &m;
+    return db;
+}
+
+BakeWriteOptions writeOptions(const BakeOptions& o) {
     BakeWriteOptions wo;
     wo.path = o.output;
     wo.inputs = {o.input, o.env};
     wo.half = o.half;
     wo.writeDensity = !o.noDensity;
     wo.densityName = "density";  // the name renderers look for; the source name is in lpm:input_grid
-    BakeWriteReport wr = writeBake(*vol.density, db, meta, wo);
+    wo.rendererGrids = o.rendererGrids;
+    wo.densityScale = o.densityScale;
+    wo.albedo = o.albedo;
+    return wo;
+}
+
+}  // namespace
+
+BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) {
+    checkOptions(o);
+    const auto tStart = Clock::now();
+    ThreadLimit limit(o.threads);
+    BakeSummary sum;
+    sum.threads = maxThreads();
+    {
+        // Fail on an impossible output path before the expensive work.
+        AtomicOutput probe(o.output, {o.input, o.env});
+    }
+    VolumeInput vol = readVolumeStage(o, sum, log);
+    const std::shared_ptr<EnvInput> env = readEnvironmentStage(o, context, sum, log);
+    Lights lights;
+    lights.env = env->env.get();
+    for (const auto& s : o.suns) lights.suns.push_back(toSun(s));
+
+    const LpmSettings settings = solveSettings(o, context, log);
+    LpmResult res = solveStage(o, vol, lights, settings, sum, log);
+    const std::vector<float> scatter = separateSunTerms(o, settings.sunTerms, vol.empty, res, sum, log);
+
+    // Metadata: everything a consumer needs to use the bake without this tool.
+    const openvdb::MetaMap meta = bakeMetadata(o, sum, res, *env, vol.sanitized + env->sanitized);
+    const BakeWriteReport wr = writeBake(*vol.density, denseBake(vol, res, scatter), meta, writeOptions(o));
     for (const auto& w : wr.warnings) log.warn(w);
     sum.secondsWrite = wr.seconds;
     sum.secondsTotal = since(tStart);

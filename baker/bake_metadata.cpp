@@ -68,6 +68,7 @@ std::string canonicalSettings(const BakeOptions& o) {
     num("subdivide", s.subdivide);
     num("half", o.half);
     num("no_density", o.noDensity);
+    num("renderer_grids", o.rendererGrids);
     num("solve_scale", o.solveScale);
     num("sun_term", o.sunTerm);
     return c.str();
@@ -186,6 +187,7 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
     flag(empty, sum.empty);
     putInt64(meta, sanitizedValues, std::int64_t(sanitizedCount));
     str(storage, o.half ? "half" : "float32");
+    flag(rendererGrids, o.rendererGrids);
     dbl(timeReadS, sum.secondsRead);
     dbl(timeEnvS, sum.secondsEnv);
     dbl(timeSolveS, sum.secondsSolve);

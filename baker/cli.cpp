@@ -13,6 +13,7 @@
 #include "baker/frame_pattern.h"
 #include "baker/options.h"
 #include "baker/sequence.h"
+#include "core/sh.h"
 #include "vdb_io/io_error.h"
 
 namespace lpm {
@@ -176,17 +177,14 @@ EXAMPLES
   lpmbake 'smoke.$F4.vdb' --frames 1001-1240 --env sky.exr --skip-existing -o 'lit.$F4.vdb'
   lpmbake info out.vdb)";
 
-}  // namespace
-
-int runCli(int argc, char** argv) {
-    CLI::App app{kDescription, "lpmbake"};
-    app.get_formatter()->column_width(34);
-    app.footer(kFooter);
-    app.set_version_flag("--version", std::string("lpmbake ") + LPM_VERSION_STRING);
-    app.require_subcommand(0, 1);
-
+/// Everything the command line sets: the option structs and the raw text converted after
+/// parsing (CLI11 would refuse "nan" without naming the range; the settings' validate()
+/// names the value and the range).
+struct Args {
     BakeOptions b;
-    b.threads = defaultThreads();
+    SequenceOptions seq;
+    RenderOptions r;
+    InfoOptions in;
     int verbose = 0;
     bool quiet = false;
     std::string albedo = "0.9";
@@ -196,242 +194,264 @@ int runCli(int argc, char** argv) {
     std::string sourceShape = "auto", deltaM = "auto", multires = "auto", sunTerm = "auto";
     std::string upAxis = "y";
     std::string solveScale = "1";
+    std::string frames;
+    int oneFrame = 0;
+    std::string eye, target, up, size = "256x256";
+    CLI::Option *framesOpt = nullptr, *frameOpt = nullptr;
+    CLI::App *render = nullptr, *info = nullptr;
+};
 
-    app.add_option("input", b.input, "input OpenVDB file (positional)");
-    app.add_option("-o,--output", b.output, "output VDB (written atomically; never the input)");
+void addInputOptions(CLI::App& app, Args& a) {
+    app.add_option("input", a.b.input, "input OpenVDB file (positional)");
+    app.add_option("-o,--output", a.b.output, "output VDB (written atomically; never the input)");
     auto* gIn = "Input volume";
-    app.add_option("--grid", b.grid, "name of the float density grid")->default_val("density")->group(gIn);
-    app.add_option("--grid-index", b.gridIndex, "which of several grids with that name (0-based; default 0 with a warning)")
+    app.add_option("--grid", a.b.grid, "name of the float density grid")->default_val("density")->group(gIn);
+    app.add_option("--grid-index", a.b.gridIndex, "which of several grids with that name (0-based; default 0 with a warning)")
         ->group(gIn);
-    app.add_flag("--convert-level-set", b.convertLevelSet,
+    app.add_flag("--convert-level-set", a.b.convertLevelSet,
                  "accept a level set by converting it with openvdb::tools::sdfToFogVolume")->group(gIn);
-    app.add_flag("--sanitize", b.sanitize,
+    app.add_flag("--sanitize", a.b.sanitize,
                  "clamp NaN/Inf/negative densities and NaN/Inf environment pixels to 0 (default: error)")->group(gIn);
-    app.add_option("--density-scale", b.densityScale, "sigma_t = density * this, per world unit")
+    app.add_option("--density-scale", a.b.densityScale, "sigma_t = density * this, per world unit")
         ->default_val(1.0)->group(gIn);
-    app.add_option("--albedo", albedo, "single-scattering albedo sigma_s/sigma_t: A or R,G,B in [0,1]")
+    app.add_option("--albedo", a.albedo, "single-scattering albedo sigma_s/sigma_t: A or R,G,B in [0,1]")
         ->default_val("0.9")->group(gIn);
-    app.add_option("--g", b.g, "Henyey-Greenstein asymmetry in (-1,1); 0 = isotropic (SH order forced to 0)")
+    app.add_option("--g", a.b.g, "Henyey-Greenstein asymmetry in (-1,1); 0 = isotropic (SH order forced to 0)")
         ->default_val(0.0)->group(gIn);
-    app.add_option("--emission-grid", b.emissionGrid, "float or Vec3f grid of emitted radiance L_e")->group(gIn);
-    app.add_option("--emission-scale", b.emissionScale, "L_e = emission value * this")->default_val(1.0)->group(gIn);
-    app.add_option("--temperature-grid", b.temperatureGrid,
+    app.add_option("--emission-grid", a.b.emissionGrid, "float or Vec3f grid of emitted radiance L_e")->group(gIn);
+    app.add_option("--emission-scale", a.b.emissionScale, "L_e = emission value * this")->default_val(1.0)->group(gIn);
+    app.add_option("--temperature-grid", a.b.temperatureGrid,
                    "float grid of temperature: black-body emission (Kelvin = value * scale + offset)")->group(gIn);
-    app.add_option("--temperature-scale", b.temperatureScale, "Kelvin per grid unit (e.g. 1000 for caches in kK)")
+    app.add_option("--temperature-scale", a.b.temperatureScale, "Kelvin per grid unit (e.g. 1000 for caches in kK)")
         ->default_val(1.0)->group(gIn);
-    app.add_option("--temperature-offset", b.temperatureOffset, "Kelvin added after scaling")
+    app.add_option("--temperature-offset", a.b.temperatureOffset, "Kelvin added after scaling")
         ->default_val(0.0)->group(gIn);
-    app.add_option("--temperature-intensity", b.temperatureIntensity,
+    app.add_option("--temperature-intensity", a.b.temperatureIntensity,
                    "L_e = this * black body(K), normalised so 6500 K has luminance 1")->default_val(1.0)->group(gIn);
-    app.add_option("--max-voxels", b.maxVoxels, "refuse dense blocks larger than this (memory guard)")
-        ->default_val(b.maxVoxels)->group(gIn);
+    app.add_option("--max-voxels", a.b.maxVoxels, "refuse dense blocks larger than this (memory guard)")
+        ->default_val(a.b.maxVoxels)->group(gIn);
 
+}
+
+void addLightOptions(CLI::App& app, Args& a) {
     auto* gL = "Lights";
-    app.add_option("--env", b.env, "lat-long environment image (EXR, HDR, ... ; width = 2 x height, at most 32768x16384)")->group(gL);
-    app.add_option("--env-colorspace", b.envColorSpace,
+    app.add_option("--env", a.b.env, "lat-long environment image (EXR, HDR, ... ; width = 2 x height, at most 32768x16384)")->group(gL);
+    app.add_option("--env-colorspace", a.b.envColorSpace,
                    "colour space of --env (default: the file's, if the OCIO config knows it, else lin_rec709)")
         ->group(gL);
-    app.add_option("--working-space", b.workingSpace, "colour space of the bake")->default_val("ACEScg")->group(gL);
-    app.add_option("--up-axis", upAxis,
+    app.add_option("--working-space", a.b.workingSpace, "colour space of the bake")->default_val("ACEScg")->group(gL);
+    app.add_option("--up-axis", a.upAxis,
                    "the scene's up axis: y (default; Houdini, Maya) or z (Blender, Mantaflow): the environment's "
                    "zenith lies along it")
         ->check(CLI::IsMember({"y", "z"}))->default_val("y")->group(gL);
-    app.add_option("--env-rotate", b.envRotateDeg, "rotate the environment about the up axis (degrees, right-handed)")
+    app.add_option("--env-rotate", a.b.envRotateDeg, "rotate the environment about the up axis (degrees, right-handed)")
         ->default_val(0.0)->group(gL);
-    app.add_option("--env-scale", b.envScale, "multiply environment radiance")->default_val(1.0)->group(gL);
-    app.add_option("--sun", suns, "direction TOWARD a sun, DX,DY,DZ (repeatable)")->group(gL);
-    app.add_option("--sun-irradiance", sunIrr,
+    app.add_option("--env-scale", a.b.envScale, "multiply environment radiance")->default_val(1.0)->group(gL);
+    app.add_option("--sun", a.suns, "direction TOWARD a sun, DX,DY,DZ (repeatable)")->group(gL);
+    app.add_option("--sun-irradiance", a.sunIrr,
                    "sun irradiance E or R,G,B: once for all suns or once per --sun (default 1)")->group(gL);
-    app.add_option("--sun-angle", sunAngle, "sun angular diameter in degrees: once or once per --sun (default 0.53)")
+    app.add_option("--sun-angle", a.sunAngle, "sun angular diameter in degrees: once or once per --sun (default 0.53)")
         ->group(gL);
 
+}
+
+void addSolverOptions(CLI::App& app, Args& a) {
     auto* gS = "Solver";
-    app.add_option("--directions-per-face", b.solver.directionsPerFace,
-                   "n: n x n propagation directions per cube face (1..64)")->default_val(b.solver.directionsPerFace)->group(gS);
-    app.add_option("--rays-per-voxel", b.solver.raysPerVoxel, "ray-map rays per voxel per lateral axis (1..16)")
-        ->default_val(b.solver.raysPerVoxel)->group(gS);
-    app.add_option("--rays-higher-orders", b.solver.raysHigherOrders,
+    app.add_option("--directions-per-face", a.b.solver.directionsPerFace,
+                   "n: n x n propagation directions per cube face (1.." + std::to_string(kMaxDirectionsPerFace) + ")")->default_val(a.b.solver.directionsPerFace)->group(gS);
+    app.add_option("--rays-per-voxel", a.b.solver.raysPerVoxel, "ray-map rays per voxel per lateral axis (1.." + std::to_string(kMaxRaysPerVoxel) + ")")
+        ->default_val(a.b.solver.raysPerVoxel)->group(gS);
+    app.add_option("--rays-higher-orders", a.b.solver.raysHigherOrders,
                    "rays per voxel of the multiple-scattering passes: -1 auto (1 when the two-grid solve runs, "
                    "else --rays-per-voxel), or 1..16")
-        ->default_val(b.solver.raysHigherOrders)->group(gS);
-    app.add_option("--bins-per-face", b.solver.binsPerFace, "unshot bins: -1 auto, 0 isotropic, b = b x b per face")
-        ->default_val(b.solver.binsPerFace)->group(gS);
-    app.add_option("--sh-order", b.solver.shOrder, "SH order of the result, 0..3")
-        ->default_val(b.solver.shOrder)->group(gS);
-    app.add_option("--tolerance", b.solver.tolerance, "stop when the scattered power still to come is below this share of the input")
-        ->default_val(b.solver.tolerance)->group(gS);
-    app.add_option("--max-orders", b.solver.maxOrders, "at most this many scattering orders")
-        ->default_val(b.solver.maxOrders)->group(gS);
-    app.add_option("--subdivide", b.solver.subdivide,
+        ->default_val(a.b.solver.raysHigherOrders)->group(gS);
+    app.add_option("--bins-per-face", a.b.solver.binsPerFace, "unshot bins: -1 auto, 0 isotropic, b = b x b per face")
+        ->default_val(a.b.solver.binsPerFace)->group(gS);
+    app.add_option("--sh-order", a.b.solver.shOrder, "SH order of the result, 0.." + std::to_string(kMaxShOrder))
+        ->default_val(a.b.solver.shOrder)->group(gS);
+    app.add_option("--tolerance", a.b.solver.tolerance, "stop when the scattered power still to come is below this share of the input")
+        ->default_val(a.b.solver.tolerance)->group(gS);
+    app.add_option("--max-orders", a.b.solver.maxOrders, "at most this many scattering orders")
+        ->default_val(a.b.solver.maxOrders)->group(gS);
+    app.add_option("--subdivide", a.b.solver.subdivide,
                    "solve on voxels split k x k x k and average back (1..8): for optically thick voxels")
-        ->default_val(b.solver.subdivide)->group(gS);
-    app.add_option("--multires", multires,
+        ->default_val(a.b.solver.subdivide)->group(gS);
+    app.add_option("--multires", a.multires,
                    "solve the higher scattering orders on a 2x coarser grid: auto (when the block stores at least "
                    "65536 voxels), on, off (docs/multires.md)")
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->group(gS);
-    app.add_option("--multires-after", b.solver.multiresAfter,
+    app.add_option("--multires-after", a.b.solver.multiresAfter,
                    "scattering passes at full resolution before the coarse grid takes over")
-        ->default_val(b.solver.multiresAfter)
+        ->default_val(a.b.solver.multiresAfter)
         ->check(CLI::Range(1, 1000))
         ->group(gS);
-    app.add_option("--source", sourceShape,
+    app.add_option("--source", a.sourceShape,
                    "source inside a voxel: auto (linear when a voxel is thicker than optical depth 2), constant, "
                    "linear (linear characteristics: leaks far less light through thick voxels, ~5x the time)")
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "constant", "linear"}))
         ->group(gS);
-    app.add_option("--delta-m", deltaM,
+    app.add_option("--delta-m", a.deltaM,
                    "forward-peak truncation (delta-M): auto and on apply it for g > 0 with a grey albedo; off "
                    "propagates the phase function unscaled")
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->group(gS);
-    app.add_option("--env-hot-share", b.solver.envHotShare,
+    app.add_option("--env-hot-share", a.b.solver.envHotShare,
                    "environment pixels holding at least this share of its power (a sun in an HDRI; at most 16) "
                    "are swept like suns in their exact direction; 0 = off")
-        ->default_val(b.solver.envHotShare)
+        ->default_val(a.b.solver.envHotShare)
         ->check(CLI::Range(0.0, 1.0))
         ->group(gS);
-    app.add_option("--sun-term", sunTerm,
+    app.add_option("--sun-term", a.sunTerm,
                    "exact sun term: auto (when g != 0), on, off: each sun's single scattering is kept out of the SH "
                    "and stored as a transmittance grid a renderer evaluates with the exact phase function "
                    "(docs/sun_term.md)")
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->group(gS);
-    app.add_flag("--no-krylov", noKrylov, "never switch to GMRES acceleration (plain source iteration)")->group(gS);
+    app.add_flag("--no-krylov", a.noKrylov, "never switch to GMRES acceleration (plain source iteration)")->group(gS);
     // Read as text and converted here: CLI11 would refuse "nan" without naming the allowed
     // range; checkOptions names the value and the range.
-    app.add_option("--solve-scale", solveScale,
+    app.add_option("--solve-scale", a.solveScale,
                    "S: solve on a grid with the input's axes and voxel size / S, S in [0.05, 8] (0.5: half the "
                    "resolution, 2: twice; 1: the input's voxels); results are interpolated back onto the "
                    "input's voxels")
         ->default_val("1")->type_name("FLOAT")->group(gS);
 
-    SequenceOptions seq;
-    std::string frames;
-    int oneFrame = 0;
+}
+
+void addSequenceAndOutputOptions(CLI::App& app, Args& a) {
     auto* gF = "Sequences (docs/farm.md)";
-    auto* framesOpt = app.add_option("--frames", frames, "frames to bake: 1001-1100, 1-50x2, 1,5,9-12; paths hold "
+    a.framesOpt = app.add_option("--frames", a.frames, "frames to bake: 1001-1100, 1-50x2, 1,5,9-12; paths hold "
                                                          "#### @ %04d or $F4")->group(gF);
-    auto* frameOpt = app.add_option("--frame", oneFrame, "one frame (as --frames N)")->group(gF);
-    framesOpt->excludes(frameOpt);
-    app.add_flag("--skip-existing", seq.skipExisting,
+    a.frameOpt = app.add_option("--frame", a.oneFrame, "one frame (as --frames N)")->group(gF);
+    a.framesOpt->excludes(a.frameOpt);
+    app.add_flag("--skip-existing", a.seq.skipExisting,
                  "keep outputs that are complete bakes of the same settings, newer than their inputs")->group(gF);
-    app.add_flag("--keep-going", seq.keepGoing, "bake the remaining frames after one fails (exit 5 at the end)")
+    app.add_flag("--keep-going", a.seq.keepGoing, "bake the remaining frames after one fails (exit 5 at the end)")
         ->group(gF);
-    app.add_option("--frame-log", seq.frameLog, "one JSON line per frame: FILE (may hold a pattern) or - (stdout)")
+    app.add_option("--frame-log", a.seq.frameLog, "one JSON line per frame: FILE (may hold a pattern) or - (stdout)")
         ->group(gF);
-    app.add_flag("--list-pending", seq.listPending,
+    app.add_flag("--list-pending", a.seq.listPending,
                  "print the frames whose output is missing, invalid, stale or of other settings (as 2,5-7); bake "
                  "nothing")->group(gF);
 
     auto* gO = "Output and run";
-    app.add_flag("--half", b.half, "store 16-bit floats (warns when values exceed 65504)")->group(gO);
-    app.add_flag("--no-density", b.noDensity, "do not copy the density grid into the output")->group(gO);
-    app.add_option("--stats", b.statsPath, "write timings, voxel counts, passes, memory as JSON")->group(gO);
-    app.add_option("--sidecar", b.sidecarPath,
+    app.add_flag("--half", a.b.half, "store 16-bit floats (warns when values exceed 65504)")->group(gO);
+    app.add_flag("--no-density", a.b.noDensity, "do not copy the density grid into the output")->group(gO);
+    app.add_flag("--renderer-grids", a.b.rendererGrids,
+                 "also write extinction (sigma_t, float) and source (sigma_s * scatter + sigma_a * L_e, Vec3f): "
+                 "grids a shader uses without any number from the metadata")
+        ->group(gO);
+    app.add_option("--stats", a.b.statsPath, "write timings, voxel counts, passes, memory as JSON")->group(gO);
+    app.add_option("--sidecar", a.b.sidecarPath,
                    "also write the bake's lpm:* metadata and grid names as JSON (for tools that cannot read VDB "
                    "metadata, e.g. Blender)")->group(gO);
-    app.add_option("--threads", b.threads, "worker threads (default: $SLURM_CPUS_PER_TASK, else all cores)")
+    app.add_option("--threads", a.b.threads, "worker threads (default: $SLURM_CPUS_PER_TASK, else all cores)")
         ->group(gO);
-    app.add_flag("-v,--verbose", verbose, "more messages (per-pass progress)")->group(gO);
-    app.add_flag("-q,--quiet", quiet, "errors only")->group(gO);
+    app.add_flag("-v,--verbose", a.verbose, "more messages (per-pass progress)")->group(gO);
+    app.add_flag("-q,--quiet", a.quiet, "errors only")->group(gO);
 
-    // render
-    RenderOptions r;
-    r.threads = defaultThreads();
-    std::string eye, target, up, size = "256x256";
-    CLI::App* render = app.add_subcommand("render", "ray-march a preview image of a bake (EXR scene-linear, PNG sRGB)");
-    render->add_option("bake", r.bake, "baked VDB")->required();
-    render->add_option("--eye", eye, "camera position X,Y,Z (default: framing the volume from +Z, a little above)");
-    render->add_option("--target", target, "point looked at X,Y,Z (default: the centre of the volume)");
-    render->add_option("--up", up, "camera up vector X,Y,Z (default: the bake's up axis, lpm:up_axis)");
-    render->add_option("--fov-y", r.fovYDeg, "vertical field of view in degrees")->default_val(40.0);
-    render->add_option("--size", size, "image size WxH")->default_val("256x256");
-    render->add_option("--env", r.env, "environment drawn behind the volume (rotation/scale from the bake)");
-    render->add_option("--env-colorspace", r.envColorSpace, "colour space of --env");
-    render->add_option("--step", r.stepVoxels, "ray-march step in voxels")->default_val(0.5);
-    render->add_option("-o,--output", r.output, "IMAGE.exr (scene-linear) or IMAGE.png (sRGB view)")->required();
-    render->add_option("--threads", r.threads, "worker threads");
-    render->add_flag("-v,--verbose", verbose, "more messages");
-    render->add_flag("-q,--quiet", quiet, "errors only");
+}
 
-    // info
-    InfoOptions in;
-    CLI::App* info = app.add_subcommand("info", "describe a bake; exit 2 if it is not a valid one");
-    info->add_option("bake", in.bake, "baked VDB")->required();
-    info->add_flag("--digest", in.digest,
+void addRenderAndInfoCommands(CLI::App& app, Args& a) {
+    a.r.threads = defaultThreads();
+    a.render = app.add_subcommand("render", "ray-march a preview image of a bake (EXR scene-linear, PNG sRGB)");
+    a.render->add_option("bake", a.r.bake, "baked VDB")->required();
+    a.render->add_option("--eye", a.eye, "camera position X,Y,Z (default: framing the volume from +Z, a little above)");
+    a.render->add_option("--target", a.target, "point looked at X,Y,Z (default: the centre of the volume)");
+    a.render->add_option("--up", a.up, "camera up vector X,Y,Z (default: the bake's up axis, lpm:up_axis)");
+    a.render->add_option("--fov-y", a.r.fovYDeg, "vertical field of view in degrees")->default_val(40.0);
+    a.render->add_option("--size", a.size, "image size WxH")->default_val("256x256");
+    a.render->add_option("--env", a.r.env, "environment drawn behind the volume (rotation/scale from the bake)");
+    a.render->add_option("--env-colorspace", a.r.envColorSpace, "colour space of --env");
+    a.render->add_option("--step", a.r.stepVoxels, "ray-march step in voxels")->default_val(0.5);
+    a.render->add_option("-o,--output", a.r.output, "IMAGE.exr (scene-linear) or IMAGE.png (sRGB view)")->required();
+    a.render->add_option("--threads", a.r.threads, "worker threads");
+    a.render->add_flag("-v,--verbose", a.verbose, "more messages");
+    a.render->add_flag("-q,--quiet", a.quiet, "errors only");
+
+    a.info = app.add_subcommand("info", "describe a bake; exit 2 if it is not a valid one");
+    a.info->add_option("bake", a.in.bake, "baked VDB")->required();
+    a.info->add_flag("--digest", a.in.digest,
                    "print only the digest of the bake's content (grids and settings, not timings): equal digests, "
                    "equal bakes");
-    info->add_flag("-q,--quiet", quiet, "errors only");
+    a.info->add_flag("-q,--quiet", a.quiet, "errors only");
 
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::CallForHelp& e) {
-        return app.exit(e);
-    } catch (const CLI::CallForAllHelp& e) {
-        return app.exit(e);
-    } catch (const CLI::CallForVersion& e) {
-        return app.exit(e);
-    } catch (const CLI::ParseError& e) {
-        return fail(kExitUsage, std::string("usage: ") + e.what() + " (see lpmbake --help)");
+}
+
+/// The suns of --sun, --sun-irradiance and --sun-angle (given once, or once per sun).
+std::vector<SunOption> parseSuns(const Args& a) {
+    const size_t n = a.suns.size();
+    if (!a.sunIrr.empty() && a.sunIrr.size() != 1 && a.sunIrr.size() != n)
+        throw UsageError("--sun-irradiance given " + std::to_string(a.sunIrr.size()) + " times for " +
+                         std::to_string(n) + " --sun: give it once or once per sun");
+    if (!a.sunAngle.empty() && a.sunAngle.size() != 1 && a.sunAngle.size() != n)
+        throw UsageError("--sun-angle given " + std::to_string(a.sunAngle.size()) + " times for " + std::to_string(n) +
+                         " --sun: give it once or once per sun");
+    if (n == 0 && (!a.sunIrr.empty() || !a.sunAngle.empty()))
+        throw UsageError("--sun-irradiance/--sun-angle without --sun");
+    std::vector<SunOption> out;
+    for (size_t i = 0; i < n; ++i) {
+        SunOption s;
+        s.toSun = parseVec3(a.suns[i], "--sun");
+        if (!a.sunIrr.empty()) s.irradiance = parseRgb(a.sunIrr[a.sunIrr.size() == 1 ? 0 : i], "--sun-irradiance");
+        if (!a.sunAngle.empty()) s.angleDeg = a.sunAngle[a.sunAngle.size() == 1 ? 0 : i];
+        out.push_back(s);
     }
+    return out;
+}
 
-    if (noKrylov) b.solver.krylov = false;
-    b.upAxis = upAxis == "z" ? UpAxis::Z : UpAxis::Y;
-    b.solver.linearSource = sourceShape == "linear" ? 1 : (sourceShape == "constant" ? 0 : -1);
-    b.solver.deltaM = deltaM == "on" ? 1 : (deltaM == "off" ? 0 : -1);
-    b.solver.multires = multires == "on" ? 1 : (multires == "off" ? 0 : -1);
-    b.sunTerm = sunTerm == "on" ? 1 : (sunTerm == "off" ? 0 : -1);
+int runRenderCommand(Args& a, const Log& log) {
+    RenderOptions& r = a.r;
+    r.autoEye = a.eye.empty();
+    r.autoTarget = a.target.empty();
+    r.autoUp = a.up.empty();
+    if (!r.autoEye) r.eye = parseVec3(a.eye, "--eye");
+    if (!r.autoTarget) r.target = parseVec3(a.target, "--target");
+    if (!r.autoUp) r.up = parseVec3(a.up, "--up");
+    parseSize(a.size, r.width, r.height);
+    runRender(r, log);
+    return kExitOk;
+}
+
+int runBakeCommand(Args& a, int argc, char** argv, const Log& log) {
+    BakeOptions& b = a.b;
+    if (b.input.empty()) throw UsageError("no input VDB given (lpmbake IN.vdb --env SKY.exr -o OUT.vdb)");
+    if (a.noKrylov) b.solver.krylov = false;
+    b.upAxis = a.upAxis == "z" ? UpAxis::Z : UpAxis::Y;
+    b.solver.linearSource = a.sourceShape == "linear" ? 1 : (a.sourceShape == "constant" ? 0 : -1);
+    b.solver.deltaM = a.deltaM == "on" ? 1 : (a.deltaM == "off" ? 0 : -1);
+    b.solver.multires = a.multires == "on" ? 1 : (a.multires == "off" ? 0 : -1);
+    b.sunTerm = a.sunTerm == "on" ? 1 : (a.sunTerm == "off" ? 0 : -1);
+    b.albedo = parseRgb(a.albedo, "--albedo");
+    b.solveScale = parseNumber(a.solveScale, "--solve-scale");
+    b.suns = parseSuns(a);
+    for (int i = 0; i < argc; ++i) b.commandLine += (i ? " " : "") + std::string(argv[i]);
+    if (!a.frames.empty() || *a.frameOpt) {
+        a.seq.bake = b;
+        a.seq.frames = *a.frameOpt ? std::vector<int>{a.oneFrame} : parseFrameList(a.frames);
+        return runSequence(a.seq, log, std::cout);
+    }
+    if (a.seq.skipExisting || a.seq.keepGoing || a.seq.listPending || !a.seq.frameLog.empty())
+        throw UsageError("--skip-existing, --keep-going, --frame-log and --list-pending need --frames or --frame");
+    if (hasFramePattern(b.input) && !fileExists(b.input))
+        throw UsageError("input '" + b.input + "' has a frame pattern: give --frames A-B or --frame N");
+    runBake(b, log);
+    return kExitOk;
+}
+
+/// Runs the parsed command; every failure becomes one line and its exit code.
+int runCommand(Args& a, int argc, char** argv) {
     Log log;
-    log.verbosity = quiet ? 0 : 1 + verbose;
+    log.verbosity = a.quiet ? 0 : 1 + a.verbose;
     try {
-        if (*render) {
-            r.autoEye = eye.empty();
-            r.autoTarget = target.empty();
-            if (!r.autoEye) r.eye = parseVec3(eye, "--eye");
-            if (!r.autoTarget) r.target = parseVec3(target, "--target");
-            r.autoUp = up.empty();
-            if (!r.autoUp) r.up = parseVec3(up, "--up");
-            parseSize(size, r.width, r.height);
-            runRender(r, log);
-            return kExitOk;
-        }
-        if (*info) return runInfo(in, std::cout, log);
-
-        if (b.input.empty()) throw UsageError("no input VDB given (lpmbake IN.vdb --env SKY.exr -o OUT.vdb)");
-        b.albedo = parseRgb(albedo, "--albedo");
-        b.solveScale = parseNumber(solveScale, "--solve-scale");
-        if (!sunIrr.empty() && sunIrr.size() != 1 && sunIrr.size() != suns.size())
-            throw UsageError("--sun-irradiance given " + std::to_string(sunIrr.size()) + " times for " +
-                             std::to_string(suns.size()) + " --sun: give it once or once per sun");
-        if (!sunAngle.empty() && sunAngle.size() != 1 && sunAngle.size() != suns.size())
-            throw UsageError("--sun-angle given " + std::to_string(sunAngle.size()) + " times for " +
-                             std::to_string(suns.size()) + " --sun: give it once or once per sun");
-        if (suns.empty() && (!sunIrr.empty() || !sunAngle.empty()))
-            throw UsageError("--sun-irradiance/--sun-angle without --sun");
-        for (size_t i = 0; i < suns.size(); ++i) {
-            SunOption s;
-            s.toSun = parseVec3(suns[i], "--sun");
-            if (!sunIrr.empty()) s.irradiance = parseRgb(sunIrr[sunIrr.size() == 1 ? 0 : i], "--sun-irradiance");
-            if (!sunAngle.empty()) s.angleDeg = sunAngle[sunAngle.size() == 1 ? 0 : i];
-            b.suns.push_back(s);
-        }
-        for (int i = 0; i < argc; ++i) b.commandLine += (i ? " " : "") + std::string(argv[i]);
-        if (!frames.empty() || *frameOpt) {
-            seq.bake = b;
-            seq.frames = *frameOpt ? std::vector<int>{oneFrame} : parseFrameList(frames);
-            return runSequence(seq, log, std::cout);
-        }
-        if (seq.skipExisting || seq.keepGoing || seq.listPending || !seq.frameLog.empty())
-            throw UsageError("--skip-existing, --keep-going, --frame-log and --list-pending need --frames or --frame");
-        if (hasFramePattern(b.input) && !fileExists(b.input))
-            throw UsageError("input '" + b.input + "' has a frame pattern: give --frames A-B or --frame N");
-        runBake(b, log);
-        return kExitOk;
+        if (*a.render) return runRenderCommand(a, log);
+        if (*a.info) return runInfo(a.in, std::cout, log);
+        return runBakeCommand(a, argc, argv, log);
     } catch (const UsageError& e) {
         return fail(kExitUsage, std::string(e.what()) + " (see lpmbake --help)");
     } catch (const InputError& e) {
@@ -448,6 +468,35 @@ int runCli(int argc, char** argv) {
     } catch (...) {
         return fail(kExitInternal, "internal: unknown exception");
     }
+}
+
+}  // namespace
+
+int runCli(int argc, char** argv) {
+    CLI::App app{kDescription, "lpmbake"};
+    app.get_formatter()->column_width(34);
+    app.footer(kFooter);
+    app.set_version_flag("--version", std::string("lpmbake ") + LPM_VERSION_STRING);
+    app.require_subcommand(0, 1);
+    Args a;
+    a.b.threads = defaultThreads();
+    addInputOptions(app, a);
+    addLightOptions(app, a);
+    addSolverOptions(app, a);
+    addSequenceAndOutputOptions(app, a);
+    addRenderAndInfoCommands(app, a);
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        return fail(kExitUsage, std::string("usage: ") + e.what() + " (see lpmbake --help)");
+    }
+    return runCommand(a, argc, argv);
 }
 
 }  // namespace lpm

@@ -65,11 +65,12 @@ struct BakeOptions {
     int threads = 0;  ///< 0 = all cores
     bool half = false;
     bool noDensity = false;
+    bool rendererGrids = false;  ///< also write extinction and source (vdb_io/renderer_grids.h)
     std::uint64_t maxVoxels = 1ull << 30;
     double solveScale = 1.0;  ///< solve voxels per input voxel along each axis, in [0.05, 8]
     int sunTerm = -1;  ///< exact sun term: -1 auto (when g != 0), 0 off, 1 on (core/sun_term.h)
     std::string statsPath;
-    std::string sidecarPath;  ///< the metadata as JSON beside the bake (baker/sidecar.h); may be empty
+    std::string sidecarPath;  ///< the metadata as JSON beside the bake (vdb_io/sidecar.h); may be empty
     std::string commandLine;  ///< recorded in the metadata
 };
 
@@ -84,9 +85,9 @@ struct BakeSummary {
     int solveDims[3] = {0, 0, 0};  ///< the solve block (0 for an empty bake)
     Vec3 solveVoxelSize{0, 0, 0};  ///< its voxel size, world units (input voxel size / solveScale)
     double secondsRead = 0, secondsEnv = 0, secondsSolve = 0, secondsWrite = 0, secondsTotal = 0;
-    bool envReused = false;
+    bool envReused = false;  ///< the environment came from the sequence's context
     int threads = 0;  ///< worker threads the bake ran with
-    int sunTerms = 0;  ///< exact sun terms written (sun_transmittance_K grids)  ///< the environment came from the sequence's context
+    int sunTerms = 0;  ///< exact sun terms written (sun_transmittance_K grids)
     long peakRssKiB = 0;
 };
 

@@ -2,6 +2,7 @@
 #include "core/lpm_settings.h"
 
 #include <cmath>
+#include <sstream>
 
 #include "core/error.h"
 #include "core/sh.h"
@@ -10,56 +11,67 @@ namespace lpm {
 
 namespace {
 
-void requireRange(const char* what, int v, int lo, int hi) {
+std::string text(double v) {
+    std::ostringstream o;
+    o << v;
+    return o.str();
+}
+
+void requireRange(const char* field, int v, int lo, int hi) {
     if (v < lo || v > hi)
-        throw Error("LPM", std::string(what) + " must be in " + std::to_string(lo) + ".." + std::to_string(hi) +
-                               ", got " + std::to_string(v));
+        throw SettingError("LPM", field, "must be in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got " +
+                                             std::to_string(v));
 }
 
-void requireAutoOrRange(const char* what, int v, int lo, int hi) {
+void requireAutoOrRange(const char* field, int v, int lo, int hi) {
     if (v != -1 && (v < lo || v > hi))
-        throw Error("LPM", std::string(what) + " must be -1 (auto) or in " + std::to_string(lo) + ".." +
-                               std::to_string(hi) + ", got " + std::to_string(v));
+        throw SettingError("LPM", field, "must be -1 (auto) or in " + std::to_string(lo) + ".." + std::to_string(hi) +
+                                             ", got " + std::to_string(v));
 }
 
-void requirePositive(const char* what, double v) {
-    if (!(v > 0) || !std::isfinite(v))
-        throw Error("LPM", std::string(what) + " must be positive and finite, got " + std::to_string(v));
+void requireAtLeast(const char* field, int v, int lo) {
+    if (v < lo) throw SettingError("LPM", field, "must be >= " + std::to_string(lo) + ", got " + std::to_string(v));
+}
+
+void requirePositive(const char* field, double v) {
+    if (!(v > 0) || !std::isfinite(v)) throw SettingError("LPM", field, "must be positive and finite, got " + text(v));
+}
+
+/// lo <= v < hi (closedTop: v <= hi).
+void requireInterval(const char* field, double v, double lo, double hi, bool closedTop) {
+    if (!(v >= lo && (closedTop ? v <= hi : v < hi)))
+        throw SettingError("LPM", field, "must be in [" + text(lo) + ", " + text(hi) + (closedTop ? "]" : ")") +
+                                             ", got " + text(v));
 }
 
 }  // namespace
 
 void LpmSettings::validate() const {
-    requireRange("directions per face", directionsPerFace, 1, 64);
-    requireRange("rays per voxel", raysPerVoxel, 1, 16);
-    requireAutoOrRange("rays per voxel of the higher orders", raysHigherOrders, 1, 16);
-    requireAutoOrRange("bins per face", binsPerFace, 0, 64);
+    requireRange("directionsPerFace", directionsPerFace, 1, kMaxDirectionsPerFace);
+    requireRange("raysPerVoxel", raysPerVoxel, 1, kMaxRaysPerVoxel);
+    requireAutoOrRange("raysHigherOrders", raysHigherOrders, 1, kMaxRaysPerVoxel);
+    requireAutoOrRange("binsPerFace", binsPerFace, 0, kMaxDirectionsPerFace);
     if (binsPerFace > 0 && directionsPerFace % binsPerFace != 0)
-        throw Error("LPM", "bins per face (" + std::to_string(binsPerFace) + ") must divide directions per face (" +
-                               std::to_string(directionsPerFace) + ")");
-    requireRange("SH order", shOrder, 0, kMaxShOrder);
+        throw SettingError("LPM", "binsPerFace", std::to_string(binsPerFace) + " must divide directions per face " +
+                                                     std::to_string(directionsPerFace));
+    requireRange("shOrder", shOrder, 0, kMaxShOrder);
     requirePositive("tolerance", tolerance);
-    if (maxOrders < 1) throw Error("LPM", "max orders must be at least 1, got " + std::to_string(maxOrders));
-    if (krylovAfter < 0 || coarseKrylovAfter < 0)
-        throw Error("LPM", "Krylov switch points must be >= 0, got " + std::to_string(krylovAfter) + " and " +
-                               std::to_string(coarseKrylovAfter));
-    if (krylovRestart < 1) throw Error("LPM", "GMRES restart must be >= 1, got " + std::to_string(krylovRestart));
-    requireAutoOrRange("linear source", linearSource, 0, 1);
-    requirePositive("linear-source threshold", linearSourceAbove);
-    requirePositive("linear-source voxel cap", linearSourceVoxelCap);
-    requireAutoOrRange("delta-M", deltaM, 0, 1);
-    if (!(deltaMAbove >= 0 && deltaMAbove < 1))
-        throw Error("LPM", "delta-M threshold on g must be in [0, 1), got " + std::to_string(deltaMAbove));
-    if (!(envHotShare >= 0 && envHotShare <= 1))
-        throw Error("LPM", "hot-pixel share must be in [0, 1], got " + std::to_string(envHotShare));
-    requireAutoOrRange("multi-resolution", multires, 0, 1);
-    if (multiresAfter < 1)
-        throw Error("LPM", "full-resolution passes before the coarse grid must be >= 1, got " +
-                               std::to_string(multiresAfter));
+    requireAtLeast("maxOrders", maxOrders, 1);
+    requireAtLeast("krylovAfter", krylovAfter, 0);
+    requireAtLeast("coarseKrylovAfter", coarseKrylovAfter, 0);
+    requireAtLeast("krylovRestart", krylovRestart, 1);
+    requireAutoOrRange("linearSource", linearSource, 0, 1);
+    requirePositive("linearSourceAbove", linearSourceAbove);
+    requirePositive("linearSourceVoxelCap", linearSourceVoxelCap);
+    requireAutoOrRange("deltaM", deltaM, 0, 1);
+    requireInterval("deltaMAbove", deltaMAbove, 0, 1, false);
+    requireInterval("envHotShare", envHotShare, 0, 1, true);
+    requireAutoOrRange("multires", multires, 0, 1);
+    requireAtLeast("multiresAfter", multiresAfter, 1);
     if (multiresMinVoxels < 0)
-        throw Error("LPM", "multi-resolution voxel threshold must be >= 0, got " + std::to_string(multiresMinVoxels));
-    requireAutoOrRange("coarse directions per face", multiresDirections, 1, 64);
-    requireRange("subdivision", subdivide, 1, 8);
+        throw SettingError("LPM", "multiresMinVoxels", "must be >= 0, got " + std::to_string(multiresMinVoxels));
+    requireAutoOrRange("multiresDirections", multiresDirections, 1, kMaxDirectionsPerFace);
+    requireRange("subdivide", subdivide, 1, kMaxSubdivide);
 }
 
 }  // namespace lpm

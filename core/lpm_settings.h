@@ -10,6 +10,11 @@ namespace lpm {
 
 class LpmCache;
 
+/// Range limits of the settings (validate(); the CLI's help quotes them).
+constexpr int kMaxDirectionsPerFace = 64;
+constexpr int kMaxRaysPerVoxel = 16;
+constexpr int kMaxSubdivide = 8;
+
 struct LpmSettings {
     int directionsPerFace = 4;  ///< n: n x n propagation directions per cube face (6 n^2 in all)
     int raysPerVoxel = 2;       ///< ray-map rays per voxel along each lateral axis (r^2 per voxel face)

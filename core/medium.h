@@ -73,7 +73,13 @@ struct Sun {
     Vec3 toSun{0, 1, 0};
     RGB irradiance{1, 1, 1};
     double angularDiameterDeg = 0.0;
+    /// Throws SettingError (fields toSun, irradiance, angularDiameterDeg).
+    void validate() const;
 };
+
+/// The medium's constants: albedo in [0, 1] per channel, g in (-1, 1). Throws SettingError
+/// (fields albedo, g).
+void validateMaterial(const RGB& albedo, double g);
 
 struct Lights {
     const EnvMap* env = nullptr;  ///< may be null (black environment)
@@ -129,6 +135,25 @@ inline void Medium::allocate(int nx_, int ny_, int nz_, const std::vector<std::u
     if (withEmission) emission.assign(voxelCount(), RGB(0.f));
 }
 
+inline void validateMaterial(const RGB& albedo, double g) {
+    for (int c = 0; c < 3; ++c)
+        if (!(albedo[c] >= 0 && albedo[c] <= 1))
+            throw SettingError("Medium", "albedo", "must lie in [0, 1], got " + std::to_string(albedo[c]));
+    if (!(g > -1 && g < 1)) throw SettingError("Medium", "g", "must lie in (-1, 1), got " + std::to_string(g));
+}
+
+inline void Sun::validate() const {
+    if (!(length(toSun) > 0) || !std::isfinite(length(toSun)))
+        throw SettingError("Sun", "toSun", "must be non-zero and finite, got " + std::to_string(toSun.x) + "," +
+                                               std::to_string(toSun.y) + "," + std::to_string(toSun.z));
+    for (int c = 0; c < 3; ++c)
+        if (!(irradiance[c] >= 0) || !std::isfinite(irradiance[c]))
+            throw SettingError("Sun", "irradiance", "must be finite and non-negative, got " + std::to_string(irradiance[c]));
+    if (!(angularDiameterDeg >= 0 && angularDiameterDeg < 180))
+        throw SettingError("Sun", "angularDiameterDeg", "must be in [0, 180) degrees, got " +
+                                                            std::to_string(angularDiameterDeg));
+}
+
 inline void Medium::validate() const {
     if (nx <= 0 || ny <= 0 || nz <= 0)
         throw Error("Medium", "grid dimensions must be positive, got " + std::to_string(nx) + "x" +
@@ -142,10 +167,7 @@ inline void Medium::validate() const {
     if (!emission.empty() && emission.size() != voxelCount())
         throw Error("Medium", "emission has " + std::to_string(emission.size()) + " values for " +
                                   std::to_string(voxelCount()) + " voxels");
-    for (int c = 0; c < 3; ++c)
-        if (!(albedo[c] >= 0 && albedo[c] <= 1))
-            throw Error("Medium", "albedo must lie in [0, 1], got " + std::to_string(albedo[c]));
-    if (!(g > -1 && g < 1)) throw Error("Medium", "the asymmetry g must lie in (-1, 1), got " + std::to_string(g));
+    validateMaterial(albedo, g);
     for (float s : sigmaT)
         if (!(s >= 0) || !std::isfinite(s))
             throw Error("Medium", "extinction must be finite and non-negative, got " + std::to_string(s));

@@ -35,5 +35,6 @@ ASAN_SKIP=(
 skip_regex="^($(IFS='|'; echo "${ASAN_SKIP[*]}"))\$"
 # The farm tests (label farm) drive the release lpmbake through Slurm in the plain run;
 # the sequence code they call is covered here by tests/baker/sequence_test.
-ctest --test-dir build-asan --output-on-failure -j"${JOBS:-2}" --timeout 1500 -LE farm \
+# The Blender test (label blender) spends its time in Blender's renderer: plain run only.
+ctest --test-dir build-asan --output-on-failure -j"${JOBS:-2}" --timeout 1500 -LE "farm|blender" \
   -E "$skip_regex"

@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 
 #include "vdb_io/io_error.h"
 
@@ -116,6 +117,21 @@ void AtomicOutput::commit() {
         ::fsync(dfd);
         ::close(dfd);
     }
+}
+
+void writeTextFileAtomically(const std::string& what, const std::string& path, const std::string& text,
+                             const std::vector<std::string>& inputs) {
+    AtomicOutput out(path, inputs);
+    {
+        std::ofstream f(out.tempPath());
+        f << text;
+        f.close();
+        if (!f) {
+            const std::string why = out.failureReason();
+            throw OutputError(what, "cannot write '" + path + "'" + (why.empty() ? "" : ": " + why));
+        }
+    }
+    out.commit();
 }
 
 }  // namespace lpm

@@ -37,4 +37,9 @@ private:
     bool committed_ = false;
 };
 
+/// Writes `text` atomically to `path` (never over one of `inputs`). Throws OutputError
+/// naming `what` ("stats", "sidecar") and the file.
+void writeTextFileAtomically(const std::string& what, const std::string& path, const std::string& text,
+                             const std::vector<std::string>& inputs);
+
 }  // namespace lpm

@@ -1,6 +1,7 @@
 // Writing and reading the baked VDB (see bake_file.h for the layout).
 #include "vdb_io/bake_file.h"
 #include "vdb_io/bake_schema.h"
+#include "vdb_io/renderer_grids.h"
 
 #include <algorithm>
 #include <chrono>
@@ -134,6 +135,7 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
         rep.maxAbsValue = std::max(rep.maxAbsValue, maxAbs(*g));
         grids.push_back(g);
     }
+    openvdb::Vec3SGrid::Ptr scatterGrid, emissionGrid;
     {
         openvdb::Vec3SGrid::Ptr s = topo->deepCopy();
         if (b.scatter)
@@ -152,6 +154,7 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
         s->setVectorType(openvdb::VEC_INVARIANT);
         s->insertMeta("lpm:description", openvdb::StringMetadata("direction-averaged S = sh_0 * 0.282095"));
         grids.push_back(s);
+        scatterGrid = s;
     }
     for (size_t k = 0; k < b.sunTransmittance.size(); ++k) {
         const float* tr = b.sunTransmittance[k];
@@ -173,12 +176,18 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
         e->setVectorType(openvdb::VEC_INVARIANT);
         e->insertMeta("lpm:description", openvdb::StringMetadata("emitted radiance L_e (scaled) used by the bake"));
         grids.push_back(e);
+        emissionGrid = e;
     }
     if (o.writeDensity) {
         openvdb::FloatGrid::Ptr d = density.deepCopy();
         d->setName(o.densityName);
         d->setGridClass(openvdb::GRID_FOG_VOLUME);
         grids.push_back(d);
+    }
+    if (o.rendererGrids) {
+        const RendererGrids rg = makeRendererGrids(density, *scatterGrid, emissionGrid.get(), o.densityScale, o.albedo);
+        grids.push_back(rg.extinction);
+        grids.push_back(rg.source);
     }
     if (o.half) {
         if (rep.maxAbsValue > kHalfMax)

@@ -68,6 +68,11 @@ struct BakeWriteOptions {
     bool half = false;                ///< store floats as 16-bit halves
     bool writeDensity = true;
     std::string densityName = "density";
+    /// Also write the constant-free grids extinction and source (renderer_grids.h) with
+    /// these medium constants.
+    bool rendererGrids = false;
+    double densityScale = 1.0;
+    RGB albedo{0.9f, 0.9f, 0.9f};
 };
 
 struct BakeWriteReport {

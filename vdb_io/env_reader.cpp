@@ -53,7 +53,14 @@ std::vector<float> readRgbImage(const std::string& path, int& width, int& height
     return rgb;
 }
 
+void EnvReadOptions::validate() const {
+    if (!(scale >= 0) || !std::isfinite(scale))
+        throw SettingError(kComp, "scale", "must be finite and non-negative, got " + std::to_string(scale));
+    if (!std::isfinite(rotateYDeg)) throw SettingError(kComp, "rotateYDeg", "must be finite");
+}
+
 EnvInput readEnvironment(const EnvReadOptions& o) {
+    o.validate();
     EnvInput out;
     std::string fileSpace;
     std::vector<float> rgb = readRgbImage(o.path, out.width, out.height, out.fileChannels, fileSpace, out.warnings);
@@ -104,8 +111,6 @@ EnvInput readEnvironment(const EnvReadOptions& o) {
     if (out.negativeClamped)
         out.warnings.push_back("'" + o.path + "': " + std::to_string(out.negativeClamped) +
                                " negative pixel value(s) (in the file or outside the working gamut) clamped to 0");
-    if (!(o.scale >= 0) || !std::isfinite(o.scale))
-        throw InputError(kComp, "environment scale must be finite and non-negative, got " + std::to_string(o.scale));
     out.env = std::make_unique<EnvMap>(out.width, out.height, std::move(pixels), o.rotateYDeg, o.scale, o.up);
     return out;
 }

@@ -19,6 +19,8 @@ struct EnvReadOptions {
     float scale = 1.0f;
     UpAxis up = UpAxis::Y;               ///< the scene's up axis (core/envmap.h)
     bool sanitize = false;               ///< NaN/Inf pixels -> 0 instead of an error
+    /// Throws SettingError (scale finite and >= 0, rotateYDeg finite).
+    void validate() const;
 };
 
 struct EnvInput {

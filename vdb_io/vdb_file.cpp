@@ -252,8 +252,8 @@ bool valueLayout(const std::string& type, ValueLayout& v) {
 /// 222 and later (per-node mask compression, OpenVDB 3.0+).
 class TreeCheck {
 public:
-    TreeCheck(Reader& r, const std::string& grid, ValueLayout v, bool half, std::uint32_t compression)
-        : r_(r), grid_(grid), v_(v), half_(half), compression_(compression) {}
+    TreeCheck(Reader& r, const std::string& grid, ValueLayout v, bool halfFloats, std::uint32_t compression)
+        : r_(r), grid_(grid), v_(v), half_(halfFloats), compression_(compression) {}
 
     void run(std::uint64_t blockPos, std::uint64_t endPos) {
         limit_ = blockPos;
@@ -521,18 +521,18 @@ void VdbFile::checkGridData(const GridExtent& g) {
     // full-float chunk of 8182 bytes into a 20-byte half buffer). The metadata was
     // checked above, so OpenVDB can parse it here.
     const std::uint64_t treeAt = r.pos();
-    bool half = g.half;
+    bool halfFloats = g.half;
     r.seek(metaAt);
     try {
         const openvdb::GridBase::Ptr probe = openvdb::GridBase::createGrid(g.type);
         probe->setSaveFloatAsHalf(g.half);
         probe->readMeta(r.stream());
-        half = probe->saveFloatAsHalf();
+        halfFloats = probe->saveFloatAsHalf();
     } catch (const std::exception& e) {
         r.fail("it is corrupt (the metadata of grid '" + name + "': " + e.what() + ")");
     }
     r.seek(treeAt);
-    TreeCheck(r, name, v, half, compression).run(blockPos, endPos);
+    TreeCheck(r, name, v, halfFloats, compression).run(blockPos, endPos);
 }
 
 openvdb::GridBase::Ptr VdbFile::readGrid(const std::string& name) {

@@ -457,7 +457,26 @@ openvdb::Vec3SGrid::Ptr temperatureToEmission(const openvdb::FloatGrid& t, const
     return e;
 }
 
+void VolumeReadOptions::validate() const {
+    auto finite = [](const char* field, double v) {
+        if (!std::isfinite(v)) throw SettingError(kComp, field, "must be finite, got " + std::to_string(v));
+    };
+    auto nonNegative = [&](const char* field, double v) {
+        finite(field, v);
+        if (!(v >= 0)) throw SettingError(kComp, field, "must be finite and non-negative, got " + std::to_string(v));
+    };
+    nonNegative("densityScale", densityScale);
+    nonNegative("emissionScale", emissionScale);
+    finite("temperatureScale", temperatureScale);
+    finite("temperatureOffset", temperatureOffset);
+    nonNegative("temperatureIntensity", temperatureIntensity);
+    if (!std::isfinite(solveScale) || solveScale < kMinSolveScale || solveScale > kMaxSolveScale)
+        throw SettingError(kComp, "solveScale", "must be finite and in [0.05, 8], got " + std::to_string(solveScale));
+    if (maxDenseVoxels == 0) throw SettingError(kComp, "maxDenseVoxels", "must be positive");
+}
+
 VolumeInput readVolume(const VolumeReadOptions& o) {
+    o.validate();
     VolumeInput out;
     VdbFile file(o.path);
     openvdb::GridPtrVecPtr metas = file.gridMetadata();
@@ -510,8 +529,7 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
     openvdb::FloatGrid::Ptr grid = gridIn.deepCopy();
     const std::string where = "grid '" + gridIn.getName() + "'" + (o.path.empty() ? "" : " in '" + o.path + "'");
 
-    if (!(o.densityScale >= 0) || !std::isfinite(o.densityScale))
-        throw InputError(kComp, "density scale must be finite and non-negative, got " + std::to_string(o.densityScale));
+    o.validate();
     if (!grid->transform().isLinear())
         throw InputError(kComp, where + " has a non-linear (frustum) transform; resample it to a linear transform "
                                         "first (e.g. openvdb::tools::resampleToMatch)");

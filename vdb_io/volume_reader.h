@@ -55,7 +55,15 @@ struct VolumeReadOptions {
     int pad = 1;                     ///< empty voxels added around the active bounding box (>= kLightingShell used)
     std::uint64_t maxDenseVoxels = 1ull << 30;  ///< refuse larger dense blocks (memory guard)
     double solveScale = 1.0;         ///< solve voxels per input voxel along each axis (--solve-scale)
+    /// Range rules: throws SettingError naming the field (densityScale, emissionScale,
+    /// temperature*, solveScale in [kMinSolveScale, kMaxSolveScale], maxDenseVoxels).
+    void validate() const;
 };
+
+/// Below 0.05 a solve voxel spans more than 20 input voxels (nothing of the volume's shape
+/// survives); above 8 the block grows 512x for no added detail (the medium is piecewise
+/// constant on the input's voxels).
+constexpr double kMinSolveScale = 0.05, kMaxSolveScale = 8.0;
 
 /// Where the dense solve block sits in the input grid's index space. With scale == 1 it is
 /// the input's own voxels (dense voxel d = index blockMin + d); otherwise solve voxel

@@ -25,6 +25,7 @@ What it builds (docs/renderers.md):
   terms); otherwise the real SH sum_k sh_k Y_k(w) at w = -view (Geometry > Incoming,
   turned into the grid frame by the object's world-to-object transform), clamped at zero,
   plus each exact sun term E_K T_K(x) p_HG(g, dot(-toward_K, w)) (docs/sun_term.md);
+  plus sigma_a * L_e from the bake's `emission` grid when it has one (as `lpmbake render`);
   the result is converted from the bake's working colour space to Blender's scene linear
   (Linear Rec.709);
 * with an environment: a world with the environment in lpmbake's orientation (lat-long,
@@ -36,8 +37,10 @@ What it builds (docs/renderers.md):
 
 The bake's parameters come from the sidecar JSON that `lpmbake ... --sidecar BAKE.json`
 writes (Blender's Python cannot read VDB file metadata).  The VDB's world coordinates are
-used as they are: Blender's world is Z-up, so a Y-up bake lies on its side unless you
-rotate the object (its SH directions turn with it; the world environment does not).
+used as they are and the camera and environment follow the bake's frame (lpm:up_axis):
+Blender's world is Z-up, so a Y-up bake (lpmbake's default) renders correctly but lies on
+its side in Blender's viewport. import_bake(..., matrix=M) places the object; the baked
+directions and the world's environment turn with M's rotation.
 
 Errors print one line `lpm_import: error: ...` and exit with lpmbake's codes: 1 usage,
 2 input, 3 output, 4 internal.
@@ -50,7 +53,7 @@ import os
 import sys
 
 import bpy
-from mathutils import Euler, Matrix, Vector
+from mathutils import Matrix, Vector
 
 PROG = "lpm_import"
 
@@ -161,6 +164,7 @@ class BakeParams:
                 "irradiance": vec3(p + "irradiance"),
                 "grid": str(meta.get(p + "grid", "sun_transmittance_%d" % k)),
             })
+        self.has_emission = bool(meta.get("lpm:emission_grid") or meta.get("lpm:temperature_grid"))
         if not -1 < self.sun_term_g < 1 and self.suns:
             raise LpmError(2, "%s: lpm:sun_term_g %g is outside (-1, 1)" % (where, self.sun_term_g))
 
@@ -172,15 +176,12 @@ class BakeParams:
         return self.sh_order == 0 and (not self.suns or self.sun_term_g == 0)
 
     def needed_grids(self):
-        grids = [self.density_grid]
+        grids = [self.density_grid] + (["emission"] if self.has_emission else [])
         if self.uses_scatter_grid():
             grids.append("scatter")
         else:
             grids += self.sh_grids() + [s["grid"] for s in self.suns]
         return grids
-
-    def up_vector(self):
-        return Vector((0, 0, 1)) if self.up_axis == "z" else Vector((0, 1, 0))
 
 
 # ---------------------------------------------------------------------------------------
@@ -338,7 +339,7 @@ def _sh_basis(nb, w, order):
     return ys
 
 
-def build_material(params, name="lpm_bake", half_voxel_shift_note=True):
+def build_material(params, name="lpm_bake"):
     """A material of stock nodes rendering the bake (see the module docstring)."""
     mat = bpy.data.materials.new(name)
     mat.use_nodes = True
@@ -376,6 +377,11 @@ def build_material(params, name="lpm_bake", half_voxel_shift_note=True):
 
     # Emission per unit length: sigma_s * S = albedo * sigma_t * S.
     emit = nb.vscale(nb.vmath("MULTIPLY", s_total, tuple(params.albedo)), sigma_t)
+    if params.has_emission:
+        # The bake's own emission: sigma_a * L_e = (1 - albedo) * sigma_t * L_e (lpmbake render).
+        le = nb.attribute("emission", "Vector")
+        absorbed = tuple(1.0 - a for a in params.albedo)
+        emit = nb.vadd(emit, nb.vscale(nb.vmath("MULTIPLY", le, absorbed), sigma_t))
     m = working_to_rec709(params.working_colorspace)
     if m is not None:
         emit = nb.matrix3(m, emit)
@@ -412,8 +418,11 @@ def env_mapping_matrix(params):
     return perm @ spin.transposed() @ up_turn.transposed()
 
 
-def setup_world(scene, params, env_path=None, env_colorspace=None):
+def setup_world(scene, params, env_path=None, env_colorspace=None, rotation=None):
     """The scene's world: the environment in lpmbake's orientation, or black.
+
+    rotation: the bake object's rotation (3x3, bake frame -> Blender world; default
+    identity), so that the background stays where the baked lighting came from.
 
     env_colorspace: the image's colour space (an lpmbake/OCIO name such as lin_rec709 or
     a Blender one); default: lpm:env_colorspace when env_path is the bake's own
@@ -455,7 +464,10 @@ def setup_world(scene, params, env_path=None, env_colorspace=None):
             raise LpmError(1, "colour space '%s' is unknown to Blender's colour config" % space)
     coord = nb.node("ShaderNodeTexCoord")
     mapping = nb.node("ShaderNodeMapping", vector_type="VECTOR")
-    mapping.inputs["Rotation"].default_value = env_mapping_matrix(params).to_euler("XYZ")
+    m = env_mapping_matrix(params)
+    if rotation is not None:
+        m = m @ Matrix(rotation).to_3x3().transposed()
+    mapping.inputs["Rotation"].default_value = m.to_euler("XYZ")
     tree.links.new(coord.outputs["Generated"], mapping.inputs["Vector"])
     tex = nb.node("ShaderNodeTexEnvironment", projection="EQUIRECTANGULAR", interpolation="Linear")
     tex.image = img
@@ -475,8 +487,9 @@ def import_bake(path, sidecar=None, env=None, scene=None, world=True, name=None,
 
     sidecar: the bake's JSON sidecar (default: path with .json).  env: environment image
     for the world (with world=True; None gives a black world, world=False leaves the
-    world alone).  matrix: the object's placement (default identity: the VDB's world
-    coordinates as they are).  half_voxel_shift: move by -0.5 voxel to undo Blender 3.4's
+    world alone; env_colorspace: see setup_world).  matrix: the object's placement
+    (default identity: the VDB's world coordinates as they are); the world's environment
+    turns with its rotation.  half_voxel_shift: move by -0.5 voxel to undo Blender 3.4's
     half-voxel placement.
     """
     scene = scene or bpy.context.scene
@@ -529,8 +542,9 @@ def import_bake(path, sidecar=None, env=None, scene=None, world=True, name=None,
     obj.matrix_world = place
     obj["lpm_sidecar"] = sidecar
     obj["lpm_half_voxel_shift"] = bool(half_voxel_shift)
+    obj["lpm_up_axis"] = params.up_axis
     if world:
-        setup_world(scene, params, env, env_colorspace)
+        setup_world(scene, params, env, env_colorspace, rotation=place.to_quaternion().to_matrix())
     _log("imported '%s': %s, SH order %d, %d exact sun term(s), up axis %s, working space %s" %
          (path, "scatter grid" if params.uses_scatter_grid() else "SH at -view",
           params.sh_order, len(params.suns), params.up_axis, params.working_colorspace))
@@ -542,7 +556,7 @@ def import_bake(path, sidecar=None, env=None, scene=None, world=True, name=None,
 # ---------------------------------------------------------------------------------------
 
 def camera_matrix(eye, target, up):
-    """lpmbake's pinhole frame (core/mc_reference.cpp): f = target - eye, r = f x up,
+    """lpmbake's pinhole frame (core/camera.cpp): f = target - eye, r = f x up,
     u = r x f; Blender's camera looks along its -Z with +Y up."""
     eye, target, up = Vector(eye), Vector(target), Vector(up)
     f = target - eye
@@ -600,6 +614,10 @@ def setup_render(scene, eye, target, up, fov_y, width, height, samples=64, seed=
     c.volume_step_rate = step_rate        # in voxels (lpmbake render's --step 0.5)
     c.volume_max_steps = 8192
     c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
+    if scene.world is not None:
+        # Nothing in this scene scatters light: the world is background only, and its
+        # importance map (seconds, hundreds of MiB for a large HDRI) would be unused.
+        scene.world.cycles.sampling_method = "NONE"
     scene.view_settings.view_transform = "Standard"
     scene.view_settings.look = "None"
     scene.view_settings.exposure = 0.0
@@ -608,13 +626,21 @@ def setup_render(scene, eye, target, up, fov_y, width, height, samples=64, seed=
     return cam
 
 
-def render_to(scene, out_path):
+def check_output(out_path):
+    """The image format from the extension; the directory must exist and be writable."""
     ext = os.path.splitext(out_path)[1].lower()
     if ext not in (".exr", ".png"):
         raise LpmError(1, "--render '%s' must end in .exr (scene-linear) or .png (sRGB view)" % out_path)
     out_dir = os.path.dirname(os.path.abspath(out_path))
     if not os.path.isdir(out_dir) or not os.access(out_dir, os.W_OK):
         raise LpmError(3, "cannot write '%s': directory missing or not writable" % out_path)
+    return ext, out_dir
+
+
+def render_to(scene, out_path):
+    """Render the scene's camera with Cycles and write out_path (.exr: scene linear,
+    32-bit float, zip; .png: 8-bit sRGB, view transform Standard) atomically."""
+    ext, out_dir = check_output(out_path)
     s = scene.render.image_settings
     if ext == ".exr":
         s.file_format = "OPEN_EXR"
@@ -702,6 +728,8 @@ def parse_args(argv):
 
 def main(argv):
     a = parse_args(argv)
+    if a.render:
+        check_output(a.render)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     obj = import_bake(a.bake, sidecar=a.sidecar, env=a.env, scene=scene,
@@ -709,7 +737,7 @@ def main(argv):
     if a.render:
         up = a.camera_up
         if up is None:
-            up = BakeParams(read_sidecar(obj["lpm_sidecar"])["metadata"], "sidecar").up_vector()
+            up = (0, 0, 1) if obj["lpm_up_axis"] == "z" else (0, 1, 0)
         setup_render(scene, a.camera_eye, a.camera_target, up, a.fov_y, a.size[0], a.size[1],
                      samples=a.samples, seed=a.seed, pixel_filter=a.pixel_filter,
                      step_rate=a.step_rate, transparent=a.transparent)

@@ -1,6 +1,7 @@
 // lpmbake end to end: exit codes, one-line errors, a real bake with its metadata and
 // stats, info, render, atomic output. Cheap solver settings keep it fast.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <cstdlib>
 
@@ -12,6 +13,7 @@
 #include "core/blackbody.h"
 #include "run_helpers.h"
 #include "vdb_io/bake_file.h"
+#include "vdb_io/bake_schema.h"
 
 using namespace lpm;
 using lpmtest::dataPath;
@@ -87,7 +89,46 @@ TEST(Cli, UsageErrorsExit1) {
         "usage", {"--directions-per-face", "got 65"});
     expectOneLineError(runLpmbake({"render", dataPath("vdb/torus01.vdb"), "-o", dir + "/x.jpg"}, dir), 1, "usage",
                        {".exr", ".png"});
+    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--up-axis", "x"}, dir),
+                       1, "usage", {"--up-axis", "x"});
     EXPECT_FALSE(fs::exists(out));
+}
+
+// --renderer-grids: extinction and source, so that a shader needs no constant; the grids
+// agree with the density, the constants and scatter.
+TEST(Cli, RendererGridsAreConstantFree) {
+    const std::string dir = lpmtest::scratchDir();
+    auto a = torusArgs(dir + "/out.vdb");
+    a.insert(a.end(), {"--renderer-grids", "--density-scale", "2", "--albedo", "0.8,0.6,0.4"});
+    const auto r = runLpmbake(a, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    const BakeFile b = readBakeFile(dir + "/out.vdb");
+    EXPECT_TRUE(validateBake(b).empty());
+    EXPECT_TRUE(getBool(*b.meta, bakekey::rendererGrids, false));
+    openvdb::FloatGrid::Ptr ext;
+    openvdb::Vec3SGrid::Ptr src;
+    for (const auto& g : b.grids) {
+        if (g->getName() == "extinction") ext = openvdb::gridPtrCast<openvdb::FloatGrid>(g);
+        if (g->getName() == "source") src = openvdb::gridPtrCast<openvdb::Vec3SGrid>(g);
+    }
+    ASSERT_TRUE(ext && src);
+    EXPECT_EQ(ext->activeVoxelCount(), b.density->activeVoxelCount());
+    int checked = 0;
+    auto sAcc = b.scatter->getConstAccessor();
+    auto srcAcc = src->getConstAccessor();
+    for (auto it = b.density->cbeginValueOn(); it && checked < 500; ++it, ++checked) {
+        const float sigmaT = 2 * *it;
+        EXPECT_FLOAT_EQ(ext->tree().getValue(it.getCoord()), sigmaT);
+        const float rgb[3] = {0.8f, 0.6f, 0.4f};
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(srcAcc.getValue(it.getCoord())[c], sigmaT * rgb[c] * sAcc.getValue(it.getCoord())[c],
+                        1e-6 * (1 + std::abs(srcAcc.getValue(it.getCoord())[c])));
+    }
+    EXPECT_EQ(checked, 500);
+    // Without the flag, neither grid.
+    ASSERT_EQ(runLpmbake(torusArgs(dir + "/plain.vdb"), dir).code, 0);
+    for (const auto& g : readBakeFile(dir + "/plain.vdb").grids)
+        EXPECT_TRUE(g->getName() != "extinction" && g->getName() != "source") << g->getName();
 }
 
 TEST(Cli, InputErrorsExit2) {
@@ -513,15 +554,46 @@ TEST(Cli, SidecarHoldsTheFilesMetadata) {
     a.insert(a.end(), {"--sun", "0.3,0.8,0.5", "--g", "0.5", "--sidecar", dir + "/out.json"});
     const auto r = runLpmbake(a, dir);
     ASSERT_EQ(r.code, 0) << r.err;
-    const std::string js = lpmtest::readAll(dir + "/out.json");
+    const nlohmann::json js = nlohmann::json::parse(lpmtest::readAll(dir + "/out.json"));
     const BakeFile b = readBakeFile(dir + "/out.vdb");
     int keys = 0;
-    for (auto it = b.meta->beginMeta(); it != b.meta->endMeta(); ++it, ++keys)
-        EXPECT_NE(js.find("\"" + it->first + "\": "), std::string::npos) << it->first;
+    for (auto it = b.meta->beginMeta(); it != b.meta->endMeta(); ++it, ++keys) {
+        ASSERT_TRUE(js["metadata"].contains(it->first)) << it->first;
+        if (auto d = b.meta->getMetadata<openvdb::DoubleMetadata>(it->first)) {
+            EXPECT_EQ(js["metadata"][it->first].get<double>(), d->value()) << it->first;
+        }
+        if (auto t = b.meta->getMetadata<openvdb::StringMetadata>(it->first)) {
+            EXPECT_EQ(js["metadata"][it->first].get<std::string>(), t->value()) << it->first;
+        }
+    }
     EXPECT_GT(keys, 50);
-    EXPECT_NE(js.find("\"bake\": \"out.vdb\""), std::string::npos);
-    EXPECT_NE(js.find("\"sun_transmittance_0\""), std::string::npos);
-    EXPECT_NE(js.find("\"lpm:sun_term_0_toward\": [0.303"), std::string::npos) << js;
+    EXPECT_EQ(js["bake"], "out.vdb");
+    EXPECT_EQ(js["format_version"], kBakeFormatVersion);
+    std::vector<std::string> gridNames, listed = js["grids"].get<std::vector<std::string>>();
+    for (const auto& g : b.grids) gridNames.push_back(g->getName());
+    std::sort(gridNames.begin(), gridNames.end());
+    std::sort(listed.begin(), listed.end());
+    EXPECT_EQ(listed, gridNames);
+    // The shader block: what a shader needs, by name, from the same schema.
+    const nlohmann::json& sh = js["shader"];
+    EXPECT_EQ(sh["density_scale"].get<double>(), getDouble(*b.meta, bakekey::densityScale, -1));
+    EXPECT_EQ(sh["g"].get<double>(), 0.5);
+    EXPECT_EQ(sh["sh_order"].get<int>(), b.shOrder);
+    EXPECT_EQ(sh["albedo"].size(), 3u);
+    EXPECT_EQ(sh["up_axis"], "y");
+    EXPECT_EQ(sh["working_colorspace"], getString(*b.meta, bakekey::workingColorspace));
+    EXPECT_TRUE(sh.contains("sh_basis") && sh.contains("frame") && sh.contains("density_grid"));
+    ASSERT_EQ(sh["sun_terms"].size(), 1u);
+    EXPECT_EQ(sh["sun_terms"][0]["grid"], "sun_transmittance_0");
+    EXPECT_NEAR(sh["sun_terms"][0]["toward"][0].get<double>(), 0.3 / std::sqrt(0.98), 1e-12);
+    EXPECT_FALSE(sh.contains("settings")) << "only shader keys in the shader block";
+    // The bake's metadata is exactly the schema's: complete, typed, nothing outside it.
+    EXPECT_TRUE(schemaProblems(*b.meta, true).empty()) << schemaProblems(*b.meta, true).front();
+    for (auto it = b.meta->beginMeta(); it != b.meta->endMeta(); ++it) {
+        bool known = it->first.rfind("lpm:sun_term_0_", 0) == 0;
+        for (const MetaKey& k : bakeSchema()) known = known || k.name == it->first;
+        EXPECT_TRUE(known) << it->first << " is not in vdb_io/bake_schema.h";
+    }
 
     const std::string seqDir = dir + "/seq";
     fs::create_directories(seqDir);

@@ -76,8 +76,12 @@ TEST_P(FormFactorG, ForwardPeakStaysInOwnBin) {
         int best = 0;
         for (int d = 1; d < ff.binCount(); ++d)
             if (ff.row(i)[d] > ff.row(i)[best]) best = d;
-        if (g > 0.3) EXPECT_EQ(best, own);
-        if (g < -0.3) EXPECT_EQ(best, bins.indexOf(-dirs.dir(i)));
+        if (g > 0.3) {
+            EXPECT_EQ(best, own);
+        }
+        if (g < -0.3) {
+            EXPECT_EQ(best, bins.indexOf(-dirs.dir(i)));
+        }
     }
 }
 

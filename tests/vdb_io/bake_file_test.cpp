@@ -1,6 +1,7 @@
 // vdb_io/bake_file: output layout (names, classes, topology, values), metadata, half
 // storage, reading back and validation.
 #include "vdb_io/bake_file.h"
+#include "vdb_io/bake_schema.h"
 
 #include <gtest/gtest.h>
 
@@ -42,15 +43,33 @@ const float* denseAt(const Fixture& f, const openvdb::Coord& c, int k) {
     return &f.sh[(i * f.bake.coeffs + k) * 3];
 }
 
+/// The smallest valid metadata: every key a shader needs (bake_schema.h), with sh_order.
+openvdb::MetaMap shaderMetadata(int shOrder) {
+    openvdb::MetaMap meta;
+    for (const MetaKey& k : bakeSchema()) {
+        if (!k.required || !k.shader) continue;
+        switch (k.type) {
+            case MetaType::String: putString(meta, k, ""); break;
+            case MetaType::Double: putDouble(meta, k, 1.0); break;
+            case MetaType::Int: putInt(meta, k, 0); break;
+            case MetaType::Int64: putInt64(meta, k, 0); break;
+            case MetaType::Bool: putBool(meta, k, false); break;
+            case MetaType::Vec3d: putVec3(meta, k, 0.5, 0.5, 0.5); break;
+            case MetaType::Vec3i: putVec3i(meta, k, 0, 0, 0); break;
+        }
+    }
+    putInt(meta, bakekey::formatVersion, kBakeFormatVersion);
+    putInt(meta, bakekey::shOrder, shOrder);
+    return meta;
+}
+
 }  // namespace
 
 TEST(BakeFile, LayoutTopologyAndValues) {
     const std::string dir = lpmtest::scratchDir();
     Fixture f = makeFixture(9);
-    openvdb::MetaMap meta;
-    meta.insertMeta("lpm:format_version", openvdb::Int32Metadata(kBakeFormatVersion));
-    meta.insertMeta("lpm:sh_order", openvdb::Int32Metadata(2));
-    meta.insertMeta("lpm:density_grid", openvdb::StringMetadata("density"));
+    openvdb::MetaMap meta = shaderMetadata(2);
+    putString(meta, bakekey::densityGrid, "density");
     BakeWriteOptions o;
     o.path = dir + "/bake.vdb";
     const BakeWriteReport rep = writeBake(*f.density, f.bake, meta, o);
@@ -120,9 +139,7 @@ TEST(BakeFile, EmptyBakeAndNoDensity) {
     auto empty = openvdb::FloatGrid::create(0.f);
     DenseBake db;  // sh == nullptr: no result
     db.coeffs = 1;
-    openvdb::MetaMap meta;
-    meta.insertMeta("lpm:format_version", openvdb::Int32Metadata(kBakeFormatVersion));
-    meta.insertMeta("lpm:sh_order", openvdb::Int32Metadata(0));
+    openvdb::MetaMap meta = shaderMetadata(0);
     BakeWriteOptions o;
     o.path = dir + "/empty.vdb";
     o.writeDensity = false;
