@@ -31,28 +31,40 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 /// One number for cubic voxels, X,Y,Z otherwise.
-std::string fmtVoxelSize(const Vec3& v) {
-    return fmt(v.x) == fmt(v.y) && fmt(v.y) == fmt(v.z) ? fmt(v.x) : fmtVec(v);
-}
+std::string fmtVoxelSize(const Vec3& v) { return fmt(v.x) == fmt(v.y) && fmt(v.y) == fmt(v.z) ? fmt(v.x) : fmtVec(v); }
 std::string fmtDims(const int d[3]) {
     return std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" + std::to_string(d[2]);
 }
 
-
 /// The CLI flag of a settings field (SettingError::field()), for errors in the user's words.
 std::string flagOf(const std::string& field) {
-    static const std::pair<const char*, const char*> flags[] = {
-        {"densityScale", "--density-scale"}, {"emissionScale", "--emission-scale"},
-        {"temperatureScale", "--temperature-scale"}, {"temperatureOffset", "--temperature-offset"},
-        {"temperatureIntensity", "--temperature-intensity"}, {"solveScale", "--solve-scale"},
-        {"maxDenseVoxels", "--max-voxels"}, {"scale", "--env-scale"}, {"rotateYDeg", "--env-rotate"},
-        {"albedo", "--albedo"}, {"g", "--g"}, {"toSun", "--sun"}, {"irradiance", "--sun-irradiance"},
-        {"angularDiameterDeg", "--sun-angle"}, {"directionsPerFace", "--directions-per-face"},
-        {"raysPerVoxel", "--rays-per-voxel"}, {"raysHigherOrders", "--rays-higher-orders"},
-        {"binsPerFace", "--bins-per-face"}, {"shOrder", "--sh-order"}, {"tolerance", "--tolerance"},
-        {"maxOrders", "--max-orders"}, {"subdivide", "--subdivide"}, {"multires", "--multires"},
-        {"multiresAfter", "--multires-after"}, {"linearSource", "--source"}, {"deltaM", "--delta-m"},
-        {"envHotShare", "--env-hot-share"}};
+    static const std::pair<const char*, const char*> flags[] = {{"densityScale", "--density-scale"},
+                                                                {"emissionScale", "--emission-scale"},
+                                                                {"temperatureScale", "--temperature-scale"},
+                                                                {"temperatureOffset", "--temperature-offset"},
+                                                                {"temperatureIntensity", "--temperature-intensity"},
+                                                                {"solveScale", "--solve-scale"},
+                                                                {"maxDenseVoxels", "--max-voxels"},
+                                                                {"scale", "--env-scale"},
+                                                                {"rotateYDeg", "--env-rotate"},
+                                                                {"albedo", "--albedo"},
+                                                                {"g", "--g"},
+                                                                {"toSun", "--sun"},
+                                                                {"irradiance", "--sun-irradiance"},
+                                                                {"angularDiameterDeg", "--sun-angle"},
+                                                                {"directionsPerFace", "--directions-per-face"},
+                                                                {"raysPerVoxel", "--rays-per-voxel"},
+                                                                {"raysHigherOrders", "--rays-higher-orders"},
+                                                                {"binsPerFace", "--bins-per-face"},
+                                                                {"shOrder", "--sh-order"},
+                                                                {"tolerance", "--tolerance"},
+                                                                {"maxOrders", "--max-orders"},
+                                                                {"subdivide", "--subdivide"},
+                                                                {"multires", "--multires"},
+                                                                {"multiresAfter", "--multires-after"},
+                                                                {"linearSource", "--source"},
+                                                                {"deltaM", "--delta-m"},
+                                                                {"envHotShare", "--env-hot-share"}};
     for (const auto& f : flags)
         if (field == f.first) return f.second;
     return field;  // a setting without a flag (only reachable from the library)
@@ -99,7 +111,8 @@ void checkOptions(const BakeOptions& o) {
     if (o.output.empty()) throw UsageError("no output given (-o OUT.vdb)");
     if (o.env.empty() && o.suns.empty() && o.emissionGrid.empty() && o.temperatureGrid.empty())
         throw UsageError("no light: give --env, --sun or --emission-grid");
-    if (o.threads < 0) throw UsageError("--threads must be 0 (all cores) or positive, got " + std::to_string(o.threads));
+    if (o.threads < 0)
+        throw UsageError("--threads must be 0 (all cores) or positive, got " + std::to_string(o.threads));
     try {
         volumeReadOptions(o).validate();
         envReadOptions(o).validate();
@@ -152,7 +165,8 @@ std::shared_ptr<EnvInput> readEnvironmentStage(const BakeOptions& o, BakeContext
     auto envHeld = std::make_shared<EnvInput>();
     if (o.env.empty()) return envHeld;
     const std::string key = o.env + "\n" + o.envColorSpace + "\n" + o.workingSpace + "\n" + fmtExact(o.envRotateDeg) +
-                            "\n" + fmtExact(o.envScale) + "\n" + upAxisName(o.upAxis) + "\n" + std::to_string(o.sanitize);
+                            "\n" + fmtExact(o.envScale) + "\n" + upAxisName(o.upAxis) + "\n" +
+                            std::to_string(o.sanitize);
     if (context && context->env && context->envKey == key) {
         sum.envReused = true;
         sum.secondsEnv = since(t);
@@ -206,7 +220,8 @@ LpmResult solveStage(const BakeOptions& o, const VolumeInput& vol, const Lights&
     LpmResult res;
     if (!vol.empty) {
         if (log.verbosity >= 2)
-            for (const std::string& line : planLpm(vol.medium, lights, settings).lines(true)) log.debug("plan: " + line);
+            for (const std::string& line : planLpm(vol.medium, lights, settings).lines(true))
+                log.debug("plan: " + line);
         res = solveLpm(vol.medium, lights, settings);
         // With -v the plan was printed before the solve: after it, only what the solve met.
         const std::vector<std::string> planned = log.verbosity >= 2 ? res.plan.lines() : std::vector<std::string>{};

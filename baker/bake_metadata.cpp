@@ -92,20 +92,25 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
     str(version, std::string("lpmbake ") + LPM_VERSION_STRING);
     i32(shOrder, res.shOrder);
     i32(bakekey::shCount, res.coeffs);
-    str(shBasis, "real orthonormal spherical harmonics, ACN index k = l*l + l + m, no Condon-Shortley phase; "
-                    "Y0 = 0.282095, Y1 = 0.488603 y, Y2 = 0.488603 z, Y3 = 0.488603 x (solver_notes section 5); "
-                    "directions in world space (the grids' transform frame)");
+    str(shBasis,
+        "real orthonormal spherical harmonics, ACN index k = l*l + l + m, no Condon-Shortley phase; "
+        "Y0 = 0.282095, Y1 = 0.488603 y, Y2 = 0.488603 z, Y3 = 0.488603 x (solver_notes section 5); "
+        "directions in world space (the grids' transform frame)");
     str(shGrids, "sh_0 .. sh_" + std::to_string(res.coeffs - 1) + ": Vec3f, RGB in xyz");
-    str(shNegativeLobes, "coefficients are not windowed; evaluating S may give small negative values: clamp "
-                             "at zero when shading (lpmbake render does)");
-    str(quantity, "S(x,w) = Int p(w,w') L(x,w') dw': phase-weighted in-scattered radiance, w = direction in "
-                    "which light travels; does not contain sigma_s");
-    str(usage, "renderer adds sigma_s(x)*S(x,-view) per unit length along a camera ray with direction view, "
-                 "sigma_s = albedo * density * density_scale; scatter = direction-averaged S for shaders that use "
-                 "it as emission (multiply by sigma_s)");
-    str(units, "S: radiance in the working colour space (environment pixels * env_scale, sun irradiance per "
-                 "steradian); lengths: world units of the grid transform; sigma_t = density * density_scale per "
-                 "world unit");
+    str(shNegativeLobes,
+        "coefficients are not windowed; evaluating S may give small negative values: clamp "
+        "at zero when shading (lpmbake render does)");
+    str(quantity,
+        "S(x,w) = Int p(w,w') L(x,w') dw': phase-weighted in-scattered radiance, w = direction in "
+        "which light travels; does not contain sigma_s");
+    str(usage,
+        "renderer adds sigma_s(x)*S(x,-view) per unit length along a camera ray with direction view, "
+        "sigma_s = albedo * density * density_scale; scatter = direction-averaged S for shaders that use "
+        "it as emission (multiply by sigma_s)");
+    str(units,
+        "S: radiance in the working colour space (environment pixels * env_scale, sun irradiance per "
+        "steradian); lengths: world units of the grid transform; sigma_t = density * density_scale per "
+        "world unit");
     str(frame, "world");
     str(upAxis, upAxisName(o.upAxis));
     str(workingColorspace, env.workingSpace.empty() ? o.workingSpace : env.workingSpace);
@@ -121,9 +126,9 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
         dbl(envRotateYDeg, o.envRotateDeg);
         dbl(envScale, o.envScale);
         str(envOrientation, o.upAxis == UpAxis::Z
-                                   ? "lat-long, OpenEXR ImfEnvmap convention, turned +90 deg about +X: zenith +Z, "
-                                     "image centre toward -Y; env_rotate_y_deg turns it about +Z"
-                                   : "lat-long, OpenEXR ImfEnvmap convention, +Y up");
+                                ? "lat-long, OpenEXR ImfEnvmap convention, turned +90 deg about +X: zenith +Z, "
+                                  "image centre toward -Y; env_rotate_y_deg turns it about +Z"
+                                : "lat-long, OpenEXR ImfEnvmap convention, +Y up");
         lightsDesc += "environment '" + o.env + "' (" + env.colorSpace + ", rotate " + fmt(o.envRotateDeg) +
                       " deg, scale " + fmt(o.envScale) + ")";
     }
@@ -143,16 +148,18 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
         dbl(temperatureScale, o.temperatureScale);
         dbl(temperatureOffset, o.temperatureOffset);
         dbl(temperatureIntensity, o.temperatureIntensity);
-        str(temperatureConvention, "Kelvin = value * temperature_scale + temperature_offset; L_e = "
-                                      "temperature_intensity * black body (Planck x CIE 1931), 6500 K -> luminance 1, "
-                                      "in the working colour space; written as grid 'emission'");
+        str(temperatureConvention,
+            "Kelvin = value * temperature_scale + temperature_offset; L_e = "
+            "temperature_intensity * black body (Planck x CIE 1931), 6500 K -> luminance 1, "
+            "in the working colour space; written as grid 'emission'");
         lightsDesc += std::string(lightsDesc.empty() ? "" : "; ") + "temperature grid '" + o.temperatureGrid + "'";
     }
     if (!o.emissionGrid.empty()) {
         str(emissionGrid, o.emissionGrid);
         dbl(emissionScale, o.emissionScale);
-        str(emissionConvention, "emitted radiance L_e = value * emission_scale; source term sigma_a * L_e "
-                                   "(pbrt-v4); written as grid 'emission'");
+        str(emissionConvention,
+            "emitted radiance L_e = value * emission_scale; source term sigma_a * L_e "
+            "(pbrt-v4); written as grid 'emission'");
         lightsDesc += std::string(lightsDesc.empty() ? "" : "; ") + "emission grid '" + o.emissionGrid + "'";
     }
     str(lights, lightsDesc);
@@ -173,8 +180,8 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
     putVec3(meta, solveVoxelSize, sum.solveVoxelSize.x, sum.solveVoxelSize.y, sum.solveVoxelSize.z);
     flag(krylov, o.solver.krylov);
     str(solver, "Light Propagation Maps (discrete ordinates, source iteration with GMRES acceleration); " +
-                      std::to_string(res.directionCount) + " directions, " + std::to_string(res.binCount) +
-                      " unshot bins");
+                    std::to_string(res.directionCount) + " directions, " + std::to_string(res.binCount) +
+                    " unshot bins");
     i32(passes, sum.passes);
     dbl(residual, res.residual);
     flag(converged, res.converged);
@@ -192,7 +199,7 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
     dbl(timeEnvS, sum.secondsEnv);
     dbl(timeSolveS, sum.secondsSolve);
     str(timings, "read " + fmt(sum.secondsRead) + " s, environment " + fmt(sum.secondsEnv) + " s, solve " +
-                       fmt(sum.secondsSolve) + " s");
+                     fmt(sum.secondsSolve) + " s");
     if (!o.commandLine.empty()) str(commandLine, o.commandLine);
     i32(sunTermCount, int(res.sunTerms.size()));
     if (!res.sunTerms.empty()) {

@@ -7,8 +7,8 @@
 #include <new>
 #include <sstream>
 
-#include <CLI/CLI.hpp>
 #include <openvdb/Exceptions.h>
+#include <CLI/CLI.hpp>
 
 #include "baker/frame_pattern.h"
 #include "baker/options.h"
@@ -206,36 +206,49 @@ void addInputOptions(CLI::App& app, Args& a) {
     app.add_option("-o,--output", a.b.output, "output VDB (written atomically; never the input)");
     auto* gIn = "Input volume";
     app.add_option("--grid", a.b.grid, "name of the float density grid")->default_val("density")->group(gIn);
-    app.add_option("--grid-index", a.b.gridIndex, "which of several grids with that name (0-based; default 0 with a warning)")
+    app.add_option("--grid-index", a.b.gridIndex,
+                   "which of several grids with that name (0-based; default 0 with a warning)")
         ->group(gIn);
     app.add_flag("--convert-level-set", a.b.convertLevelSet,
-                 "accept a level set by converting it with openvdb::tools::sdfToFogVolume")->group(gIn);
+                 "accept a level set by converting it with openvdb::tools::sdfToFogVolume")
+        ->group(gIn);
     app.add_flag("--sanitize", a.b.sanitize,
-                 "clamp NaN/Inf/negative densities and NaN/Inf environment pixels to 0 (default: error)")->group(gIn);
+                 "clamp NaN/Inf/negative densities and NaN/Inf environment pixels to 0 (default: error)")
+        ->group(gIn);
     app.add_option("--density-scale", a.b.densityScale, "sigma_t = density * this, per world unit")
-        ->default_val(1.0)->group(gIn);
+        ->default_val(1.0)
+        ->group(gIn);
     app.add_option("--albedo", a.albedo, "single-scattering albedo sigma_s/sigma_t: A or R,G,B in [0,1]")
-        ->default_val("0.9")->group(gIn);
+        ->default_val("0.9")
+        ->group(gIn);
     app.add_option("--g", a.b.g, "Henyey-Greenstein asymmetry in (-1,1); 0 = isotropic (SH order forced to 0)")
-        ->default_val(0.0)->group(gIn);
+        ->default_val(0.0)
+        ->group(gIn);
     app.add_option("--emission-grid", a.b.emissionGrid, "float or Vec3f grid of emitted radiance L_e")->group(gIn);
     app.add_option("--emission-scale", a.b.emissionScale, "L_e = emission value * this")->default_val(1.0)->group(gIn);
     app.add_option("--temperature-grid", a.b.temperatureGrid,
-                   "float grid of temperature: black-body emission (Kelvin = value * scale + offset)")->group(gIn);
+                   "float grid of temperature: black-body emission (Kelvin = value * scale + offset)")
+        ->group(gIn);
     app.add_option("--temperature-scale", a.b.temperatureScale, "Kelvin per grid unit (e.g. 1000 for caches in kK)")
-        ->default_val(1.0)->group(gIn);
+        ->default_val(1.0)
+        ->group(gIn);
     app.add_option("--temperature-offset", a.b.temperatureOffset, "Kelvin added after scaling")
-        ->default_val(0.0)->group(gIn);
+        ->default_val(0.0)
+        ->group(gIn);
     app.add_option("--temperature-intensity", a.b.temperatureIntensity,
-                   "L_e = this * black body(K), normalised so 6500 K has luminance 1")->default_val(1.0)->group(gIn);
+                   "L_e = this * black body(K), normalised so 6500 K has luminance 1")
+        ->default_val(1.0)
+        ->group(gIn);
     app.add_option("--max-voxels", a.b.maxVoxels, "refuse dense blocks larger than this (memory guard)")
-        ->default_val(a.b.maxVoxels)->group(gIn);
-
+        ->default_val(a.b.maxVoxels)
+        ->group(gIn);
 }
 
 void addLightOptions(CLI::App& app, Args& a) {
     auto* gL = "Lights";
-    app.add_option("--env", a.b.env, "lat-long environment image (EXR, HDR, ... ; width = 2 x height, at most 32768x16384)")->group(gL);
+    app.add_option("--env", a.b.env,
+                   "lat-long environment image (EXR, HDR, ... ; width = 2 x height, at most 32768x16384)")
+        ->group(gL);
     app.add_option("--env-colorspace", a.b.envColorSpace,
                    "colour space of --env (default: the file's, if the OCIO config knows it, else lin_rec709)")
         ->group(gL);
@@ -243,39 +256,53 @@ void addLightOptions(CLI::App& app, Args& a) {
     app.add_option("--up-axis", a.upAxis,
                    "the scene's up axis: y (default; Houdini, Maya) or z (Blender, Mantaflow): the environment's "
                    "zenith lies along it")
-        ->check(CLI::IsMember({"y", "z"}))->default_val("y")->group(gL);
+        ->check(CLI::IsMember({"y", "z"}))
+        ->default_val("y")
+        ->group(gL);
     app.add_option("--env-rotate", a.b.envRotateDeg, "rotate the environment about the up axis (degrees, right-handed)")
-        ->default_val(0.0)->group(gL);
+        ->default_val(0.0)
+        ->group(gL);
     app.add_option("--env-scale", a.b.envScale, "multiply environment radiance")->default_val(1.0)->group(gL);
     app.add_option("--sun", a.suns, "direction TOWARD a sun, DX,DY,DZ (repeatable)")->group(gL);
     app.add_option("--sun-irradiance", a.sunIrr,
-                   "sun irradiance E or R,G,B: once for all suns or once per --sun (default 1)")->group(gL);
+                   "sun irradiance E or R,G,B: once for all suns or once per --sun (default 1)")
+        ->group(gL);
     app.add_option("--sun-angle", a.sunAngle, "sun angular diameter in degrees: once or once per --sun (default 0.53)")
         ->group(gL);
-
 }
 
 void addSolverOptions(CLI::App& app, Args& a) {
     auto* gS = "Solver";
     app.add_option("--directions-per-face", a.b.solver.directionsPerFace,
-                   "n: n x n propagation directions per cube face (1.." + std::to_string(kMaxDirectionsPerFace) + ")")->default_val(a.b.solver.directionsPerFace)->group(gS);
-    app.add_option("--rays-per-voxel", a.b.solver.raysPerVoxel, "ray-map rays per voxel per lateral axis (1.." + std::to_string(kMaxRaysPerVoxel) + ")")
-        ->default_val(a.b.solver.raysPerVoxel)->group(gS);
+                   "n: n x n propagation directions per cube face (1.." + std::to_string(kMaxDirectionsPerFace) + ")")
+        ->default_val(a.b.solver.directionsPerFace)
+        ->group(gS);
+    app.add_option("--rays-per-voxel", a.b.solver.raysPerVoxel,
+                   "ray-map rays per voxel per lateral axis (1.." + std::to_string(kMaxRaysPerVoxel) + ")")
+        ->default_val(a.b.solver.raysPerVoxel)
+        ->group(gS);
     app.add_option("--rays-higher-orders", a.b.solver.raysHigherOrders,
                    "rays per voxel of the multiple-scattering passes: -1 auto (1 when the two-grid solve runs, "
                    "else --rays-per-voxel), or 1..16")
-        ->default_val(a.b.solver.raysHigherOrders)->group(gS);
+        ->default_val(a.b.solver.raysHigherOrders)
+        ->group(gS);
     app.add_option("--bins-per-face", a.b.solver.binsPerFace, "unshot bins: -1 auto, 0 isotropic, b = b x b per face")
-        ->default_val(a.b.solver.binsPerFace)->group(gS);
+        ->default_val(a.b.solver.binsPerFace)
+        ->group(gS);
     app.add_option("--sh-order", a.b.solver.shOrder, "SH order of the result, 0.." + std::to_string(kMaxShOrder))
-        ->default_val(a.b.solver.shOrder)->group(gS);
-    app.add_option("--tolerance", a.b.solver.tolerance, "stop when the scattered power still to come is below this share of the input")
-        ->default_val(a.b.solver.tolerance)->group(gS);
+        ->default_val(a.b.solver.shOrder)
+        ->group(gS);
+    app.add_option("--tolerance", a.b.solver.tolerance,
+                   "stop when the scattered power still to come is below this share of the input")
+        ->default_val(a.b.solver.tolerance)
+        ->group(gS);
     app.add_option("--max-orders", a.b.solver.maxOrders, "at most this many scattering orders")
-        ->default_val(a.b.solver.maxOrders)->group(gS);
+        ->default_val(a.b.solver.maxOrders)
+        ->group(gS);
     app.add_option("--subdivide", a.b.solver.subdivide,
                    "solve on voxels split k x k x k and average back (1..8): for optically thick voxels")
-        ->default_val(a.b.solver.subdivide)->group(gS);
+        ->default_val(a.b.solver.subdivide)
+        ->group(gS);
     app.add_option("--multires", a.multires,
                    "solve the higher scattering orders on a 2x coarser grid: auto (when the block stores at least "
                    "65536 voxels), on, off (docs/multires.md)")
@@ -319,25 +346,30 @@ void addSolverOptions(CLI::App& app, Args& a) {
                    "S: solve on a grid with the input's axes and voxel size / S, S in [0.05, 8] (0.5: half the "
                    "resolution, 2: twice; 1: the input's voxels); results are interpolated back onto the "
                    "input's voxels")
-        ->default_val("1")->type_name("FLOAT")->group(gS);
-
+        ->default_val("1")
+        ->type_name("FLOAT")
+        ->group(gS);
 }
 
 void addSequenceAndOutputOptions(CLI::App& app, Args& a) {
     auto* gF = "Sequences (docs/farm.md)";
-    a.framesOpt = app.add_option("--frames", a.frames, "frames to bake: 1001-1100, 1-50x2, 1,5,9-12; paths hold "
-                                                         "#### @ %04d or $F4")->group(gF);
+    a.framesOpt = app.add_option("--frames", a.frames,
+                                 "frames to bake: 1001-1100, 1-50x2, 1,5,9-12; paths hold "
+                                 "#### @ %04d or $F4")
+                      ->group(gF);
     a.frameOpt = app.add_option("--frame", a.oneFrame, "one frame (as --frames N)")->group(gF);
     a.framesOpt->excludes(a.frameOpt);
     app.add_flag("--skip-existing", a.seq.skipExisting,
-                 "keep outputs that are complete bakes of the same settings, newer than their inputs")->group(gF);
+                 "keep outputs that are complete bakes of the same settings, newer than their inputs")
+        ->group(gF);
     app.add_flag("--keep-going", a.seq.keepGoing, "bake the remaining frames after one fails (exit 5 at the end)")
         ->group(gF);
     app.add_option("--frame-log", a.seq.frameLog, "one JSON line per frame: FILE (may hold a pattern) or - (stdout)")
         ->group(gF);
     app.add_flag("--list-pending", a.seq.listPending,
                  "print the frames whose output is missing, invalid, stale or of other settings (as 2,5-7); bake "
-                 "nothing")->group(gF);
+                 "nothing")
+        ->group(gF);
 
     auto* gO = "Output and run";
     app.add_flag("--half", a.b.half, "store 16-bit floats (warns when values exceed 65504)")->group(gO);
@@ -349,12 +381,12 @@ void addSequenceAndOutputOptions(CLI::App& app, Args& a) {
     app.add_option("--stats", a.b.statsPath, "write timings, voxel counts, passes, memory as JSON")->group(gO);
     app.add_option("--sidecar", a.b.sidecarPath,
                    "also write the bake's lpm:* metadata and grid names as JSON (for tools that cannot read VDB "
-                   "metadata, e.g. Blender)")->group(gO);
+                   "metadata, e.g. Blender)")
+        ->group(gO);
     app.add_option("--threads", a.b.threads, "worker threads (default: $SLURM_CPUS_PER_TASK, else all cores)")
         ->group(gO);
     app.add_flag("-v,--verbose", a.verbose, "more messages (per-pass progress)")->group(gO);
     app.add_flag("-q,--quiet", a.quiet, "errors only")->group(gO);
-
 }
 
 void addRenderAndInfoCommands(CLI::App& app, Args& a) {
@@ -377,10 +409,9 @@ void addRenderAndInfoCommands(CLI::App& app, Args& a) {
     a.info = app.add_subcommand("info", "describe a bake; exit 2 if it is not a valid one");
     a.info->add_option("bake", a.in.bake, "baked VDB")->required();
     a.info->add_flag("--digest", a.in.digest,
-                   "print only the digest of the bake's content (grids and settings, not timings): equal digests, "
-                   "equal bakes");
+                     "print only the digest of the bake's content (grids and settings, not timings): equal digests, "
+                     "equal bakes");
     a.info->add_flag("-q,--quiet", a.quiet, "errors only");
-
 }
 
 /// The suns of --sun, --sun-irradiance and --sun-angle (given once, or once per sun).

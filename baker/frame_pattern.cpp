@@ -97,8 +97,7 @@ std::string expandFramePattern(const std::string& path, int frame) {
 std::vector<int> parseFrameList(const std::string& list) {
     constexpr long long kMaxFrames = 1000000, kLimit = 2000000000;
     auto bad = [&](const std::string& why) {
-        return UsageError("frame list '" + list + "': " + why +
-                          " (expected e.g. 1001-1100, 1-50x2 or 1,5,9-12)");
+        return UsageError("frame list '" + list + "': " + why + " (expected e.g. 1001-1100, 1-50x2 or 1,5,9-12)");
     };
     std::vector<int> frames;
     std::set<int> seen;
@@ -118,8 +117,7 @@ std::vector<int> parseFrameList(const std::string& list) {
             }
         }
         if (a < -kLimit || b > kLimit) throw bad("frame numbers must lie within +-2e9");
-        if ((b - a) / step + 1 + static_cast<long long>(frames.size()) > kMaxFrames)
-            throw bad("more than 1e6 frames");
+        if ((b - a) / step + 1 + static_cast<long long>(frames.size()) > kMaxFrames) throw bad("more than 1e6 frames");
         for (long long f = a; f <= b; f += step)
             if (seen.insert(int(f)).second) frames.push_back(int(f));
         if (pos == list.size()) break;

@@ -1,8 +1,8 @@
 // `lpmbake info BAKED.vdb`: grids, metadata, value ranges and NaN counts of a bake, and
 // whether it is a valid one (exit 0) or not (exit 2).
 #include <cmath>
-#include <iostream>
 #include <iomanip>
+#include <iostream>
 #include <limits>
 #include <ostream>
 
@@ -82,8 +82,7 @@ int runInfo(const InfoOptions& o, std::ostream& out, const Log& log) {
             r = scan(*fg, 1, [](float v, int) { return double(v); });
         else if (auto vg = openvdb::gridPtrCast<openvdb::Vec3SGrid>(g))
             r = scan(*vg, 3, [](const openvdb::Vec3s& v, int c) { return double(v[c]); });
-        else
-            ranged = false;
+        else ranged = false;
         if (ranged && r.count > 0) {
             out << ", range";
             for (int c = 0; c < r.channels; ++c) out << (c ? " / " : " ") << "[" << r.lo[c] << ", " << r.hi[c] << "]";

@@ -68,7 +68,7 @@ struct BakeOptions {
     bool rendererGrids = false;  ///< also write extinction and source (vdb_io/renderer_grids.h)
     std::uint64_t maxVoxels = 1ull << 30;
     double solveScale = 1.0;  ///< solve voxels per input voxel along each axis, in [0.05, 8]
-    int sunTerm = -1;  ///< exact sun term: -1 auto (when g != 0), 0 off, 1 on (core/sun_term.h)
+    int sunTerm = -1;         ///< exact sun term: -1 auto (when g != 0), 0 off, 1 on (core/sun_term.h)
     std::string statsPath;
     std::string sidecarPath;  ///< the metadata as JSON beside the bake (vdb_io/sidecar.h); may be empty
     std::string commandLine;  ///< recorded in the metadata
@@ -86,8 +86,8 @@ struct BakeSummary {
     Vec3 solveVoxelSize{0, 0, 0};  ///< its voxel size, world units (input voxel size / solveScale)
     double secondsRead = 0, secondsEnv = 0, secondsSolve = 0, secondsWrite = 0, secondsTotal = 0;
     bool envReused = false;  ///< the environment came from the sequence's context
-    int threads = 0;  ///< worker threads the bake ran with
-    int sunTerms = 0;  ///< exact sun terms written (sun_transmittance_K grids)
+    int threads = 0;         ///< worker threads the bake ran with
+    int sunTerms = 0;        ///< exact sun terms written (sun_transmittance_K grids)
     long peakRssKiB = 0;
 };
 
@@ -95,7 +95,7 @@ struct RenderOptions {
     std::string bake, output, env, envColorSpace;
     Vec3 eye{0, 0, 5}, target{0, 0, 0}, up{0, 1, 0};
     bool autoEye = false, autoTarget = false;  ///< frame the volume's bounding box instead
-    bool autoUp = false;  ///< the bake's up axis (lpm:up_axis) instead of `up`
+    bool autoUp = false;                       ///< the bake's up axis (lpm:up_axis) instead of `up`
     double fovYDeg = 40;
     int width = 256, height = 256;
     double stepVoxels = 0.5;  ///< ray-march step in voxels

@@ -12,10 +12,10 @@
 #include "baker/bake_metadata.h"
 #include "baker/frame_pattern.h"
 #include "baker/peak_memory.h"
-#include "vdb_io/bake_schema.h"
 #include "baker/text_format.h"
 #include "vdb_io/atomic_file.h"
 #include "vdb_io/bake_file.h"
+#include "vdb_io/bake_schema.h"
 #include "vdb_io/io_error.h"
 
 namespace lpm {
@@ -33,7 +33,7 @@ long long mtimeNs(const std::string& path) {
 
 struct FrameRecord {
     int frame = 0;
-    std::string status;  ///< baked, skipped, failed
+    std::string status;                 ///< baked, skipped, failed
     std::string input, output, detail;  ///< detail: why it was baked or skipped, or the error
     int exitCode = kExitOk;
     double seconds = 0;
@@ -46,11 +46,13 @@ std::string jsonLine(const FrameRecord& r) {
     j << std::setprecision(9);
     j << "{\"frame\": " << r.frame << ", \"status\": \"" << r.status << "\", \"seconds\": " << r.seconds;
     if (r.status == "baked")
-        j << ", \"threads\": " << r.summary.threads << ", \"passes\": " << r.summary.passes << ", \"residual\": " << r.summary.residual
-          << ", \"converged\": " << (r.summary.converged ? "true" : "false") << ", \"empty\": "
-          << (r.summary.empty ? "true" : "false") << ", \"peak_rss_mib\": " << double(r.peakRssKiB) / 1024.0
+        j << ", \"threads\": " << r.summary.threads << ", \"passes\": " << r.summary.passes
+          << ", \"residual\": " << r.summary.residual << ", \"converged\": " << (r.summary.converged ? "true" : "false")
+          << ", \"empty\": " << (r.summary.empty ? "true" : "false")
+          << ", \"peak_rss_mib\": " << double(r.peakRssKiB) / 1024.0
           << ", \"environment_reused\": " << (r.summary.envReused ? "true" : "false");
-    if (r.status == "failed") j << ", \"exit_code\": " << r.exitCode << ", \"error\": \"" << jsonEscape(r.detail) << "\"";
+    if (r.status == "failed")
+        j << ", \"exit_code\": " << r.exitCode << ", \"error\": \"" << jsonEscape(r.detail) << "\"";
     else j << ", \"reason\": \"" << jsonEscape(r.detail) << "\"";
     j << ", \"input\": \"" << jsonEscape(r.input) << "\", \"output\": \"" << jsonEscape(r.output) << "\"}";
     return j.str();

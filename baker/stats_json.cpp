@@ -40,8 +40,12 @@ json stagesJson(const LpmResult& r) {
             firstFineSegments = ps.segments;
         }
     }
-    return {{"single_scattering", single}, {"sun_terms", r.sunTermSeconds}, {"fine_orders", fine},
-            {"coarse_orders", coarse},     {"gmres", krylov},                {"first_fine_pass", std::max(0.0, firstFine)},
+    return {{"single_scattering", single},
+            {"sun_terms", r.sunTermSeconds},
+            {"fine_orders", fine},
+            {"coarse_orders", coarse},
+            {"gmres", krylov},
+            {"first_fine_pass", std::max(0.0, firstFine)},
             {"first_fine_pass_segments", firstFineSegments}};
 }
 
@@ -49,9 +53,15 @@ json passesJson(const LpmResult* r) {
     json passes = json::array();
     if (!r) return passes;
     for (const PassStats& p : r->passes)
-        passes.push_back({{"pass", p.pass},         {"injected", p.injected}, {"scattered", p.scattered},
-                          {"absorbed", p.absorbed}, {"escaped", p.escaped},   {"seconds", p.seconds},
-                          {"krylov", p.krylov},     {"coarse", p.coarse},     {"segments", p.segments}});
+        passes.push_back({{"pass", p.pass},
+                          {"injected", p.injected},
+                          {"scattered", p.scattered},
+                          {"absorbed", p.absorbed},
+                          {"escaped", p.escaped},
+                          {"seconds", p.seconds},
+                          {"krylov", p.krylov},
+                          {"coarse", p.coarse},
+                          {"segments", p.segments}});
     return passes;
 }
 

@@ -23,8 +23,7 @@ Vec3 upAxisToWorld(UpAxis a, const Vec3& d) { return a == UpAxis::Z ? Vec3(d.x, 
 EnvMap::EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDegrees, float scale, UpAxis up)
     : width_(width), height_(height), pixels_(std::move(pixels)) {
     if (width_ <= 0 || height_ <= 0 || pixels_.size() != size_t(width_) * height_)
-        throw Error("EnvMap", "bad image size " + std::to_string(width_) + "x" +
-                                  std::to_string(height_));
+        throw Error("EnvMap", "bad image size " + std::to_string(width_) + "x" + std::to_string(height_));
     const Mat3 spin = Mat3::rotation({0, 1, 0}, rotateYDegrees * kPi / 180.0);
     const Mat3 upTurn = up == UpAxis::Z ? Mat3::rotation({1, 0, 0}, kPi / 2) : Mat3::identity();
     rot_ = upTurn * spin;
@@ -32,8 +31,7 @@ EnvMap::EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDeg
     for (RGB& p : pixels_) {
         for (int c = 0; c < 3; ++c) {
             if (!std::isfinite(p[c]) || p[c] < 0)
-                throw Error("EnvMap", "pixel value " + std::to_string(p[c]) +
-                                          " is not a finite non-negative radiance");
+                throw Error("EnvMap", "pixel value " + std::to_string(p[c]) + " is not a finite non-negative radiance");
         }
         p = p * scale;
         maxValue_ = std::max(maxValue_, p.maxComponent());
@@ -103,8 +101,7 @@ double EnvMap::pdf(const Vec3& towardLight) const {
     if (total_ <= 0) return 0;
     int px, py;
     pixelOf(towardLight, px, py);
-    const double omega = (2 * kPi / width_) *
-                         (std::cos(rowTheta(py, height_)) - std::cos(rowTheta(py + 1, height_)));
+    const double omega = (2 * kPi / width_) * (std::cos(rowTheta(py, height_)) - std::cos(rowTheta(py + 1, height_)));
     return pixelPdf_[size_t(py) * width_ + px] / omega;
 }
 
@@ -159,7 +156,8 @@ std::vector<EnvHotPixel> EnvMap::hotPixels(double minShare, int maxCount) const 
             h.share = share;
             hot.push_back(h);
         }
-    std::stable_sort(hot.begin(), hot.end(), [](const EnvHotPixel& a, const EnvHotPixel& b) { return a.share > b.share; });
+    std::stable_sort(hot.begin(), hot.end(),
+                     [](const EnvHotPixel& a, const EnvHotPixel& b) { return a.share > b.share; });
     if (hot.size() > size_t(maxCount)) hot.resize(size_t(maxCount));
     return hot;
 }

@@ -21,10 +21,10 @@ namespace lpm {
 /// A pixel carrying a large share of the environment's power (a sun in an HDRI).
 struct EnvHotPixel {
     int x = 0, y = 0;
-    Vec3 toward;          ///< world direction toward the pixel's centre (unit)
-    double omega = 0;     ///< the pixel's solid angle (sr)
+    Vec3 toward;       ///< world direction toward the pixel's centre (unit)
+    double omega = 0;  ///< the pixel's solid angle (sr)
     RGB radiance;
-    double share = 0;     ///< share of the map's power (mean RGB x solid angle)
+    double share = 0;  ///< share of the map's power (mean RGB x solid angle)
 };
 
 /// Which world axis is up for the environment (docs/conventions.md, "Up axis").
@@ -39,8 +39,8 @@ Vec3 upAxisToWorld(UpAxis a, const Vec3& imageDir);
 
 class EnvMap {
 public:
-    EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDegrees = 0.0,
-           float scale = 1.0f, UpAxis up = UpAxis::Y);
+    EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDegrees = 0.0, float scale = 1.0f,
+           UpAxis up = UpAxis::Y);
     static EnvMap constant(const RGB& radiance);
 
     int width() const { return width_; }

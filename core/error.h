@@ -8,8 +8,7 @@ namespace lpm {
 
 class Error : public std::runtime_error {
 public:
-    Error(const std::string& component, const std::string& message)
-        : std::runtime_error(component + ": " + message) {}
+    Error(const std::string& component, const std::string& message) : std::runtime_error(component + ": " + message) {}
 };
 
 /// A setting out of its range, thrown by a settings struct's validate(): `field` names the

@@ -21,8 +21,8 @@ std::shared_ptr<const EnvBinning> LpmCache::envBinning(const EnvMap& env, int di
     const std::lock_guard<std::mutex> lock(mutex_);
     auto& slot = envBinnings_[EnvKey{&env, directionsPerFace, hotShare, Rinv.m}];
     if (!slot) {
-        slot = std::make_shared<const EnvBinning>(
-            binEnvironment(env, CubeQuadrature(directionsPerFace), Rinv, hotShare));
+        slot =
+            std::make_shared<const EnvBinning>(binEnvironment(env, CubeQuadrature(directionsPerFace), Rinv, hotShare));
         ++envComputed_;
     }
     return slot;

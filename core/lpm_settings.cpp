@@ -19,14 +19,16 @@ std::string text(double v) {
 
 void requireRange(const char* field, int v, int lo, int hi) {
     if (v < lo || v > hi)
-        throw SettingError("LPM", field, "must be in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got " +
-                                             std::to_string(v));
+        throw SettingError(
+            "LPM", field,
+            "must be in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got " + std::to_string(v));
 }
 
 void requireAutoOrRange(const char* field, int v, int lo, int hi) {
     if (v != -1 && (v < lo || v > hi))
-        throw SettingError("LPM", field, "must be -1 (auto) or in " + std::to_string(lo) + ".." + std::to_string(hi) +
-                                             ", got " + std::to_string(v));
+        throw SettingError(
+            "LPM", field,
+            "must be -1 (auto) or in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got " + std::to_string(v));
 }
 
 void requireAtLeast(const char* field, int v, int lo) {
@@ -40,8 +42,8 @@ void requirePositive(const char* field, double v) {
 /// lo <= v < hi (closedTop: v <= hi).
 void requireInterval(const char* field, double v, double lo, double hi, bool closedTop) {
     if (!(v >= lo && (closedTop ? v <= hi : v < hi)))
-        throw SettingError("LPM", field, "must be in [" + text(lo) + ", " + text(hi) + (closedTop ? "]" : ")") +
-                                             ", got " + text(v));
+        throw SettingError("LPM", field,
+                           "must be in [" + text(lo) + ", " + text(hi) + (closedTop ? "]" : ")") + ", got " + text(v));
 }
 
 }  // namespace
@@ -52,8 +54,9 @@ void LpmSettings::validate() const {
     requireAutoOrRange("raysHigherOrders", raysHigherOrders, 1, kMaxRaysPerVoxel);
     requireAutoOrRange("binsPerFace", binsPerFace, 0, kMaxDirectionsPerFace);
     if (binsPerFace > 0 && directionsPerFace % binsPerFace != 0)
-        throw SettingError("LPM", "binsPerFace", std::to_string(binsPerFace) + " must divide directions per face " +
-                                                     std::to_string(directionsPerFace));
+        throw SettingError(
+            "LPM", "binsPerFace",
+            std::to_string(binsPerFace) + " must divide directions per face " + std::to_string(directionsPerFace));
     requireRange("shOrder", shOrder, 0, kMaxShOrder);
     requirePositive("tolerance", tolerance);
     requireAtLeast("maxOrders", maxOrders, 1);

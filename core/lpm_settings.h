@@ -16,38 +16,38 @@ constexpr int kMaxRaysPerVoxel = 16;
 constexpr int kMaxSubdivide = 8;
 
 struct LpmSettings {
-    int directionsPerFace = 4;  ///< n: n x n propagation directions per cube face (6 n^2 in all)
-    int raysPerVoxel = 2;       ///< ray-map rays per voxel along each lateral axis (r^2 per voxel face)
-    int raysHigherOrders = -1;  ///< rays per voxel of the passes after the first (multiple scattering):
-                                ///< -1 auto (1 when the two-grid solve runs, else raysPerVoxel), or 1..16
-    int binsPerFace = -1;       ///< unshot bins: -1 auto (1 isotropic bin when g == 0, else 2x2 per face
-                                ///< when n is even, n x n for n = 1 or 3, else 1 per face); must divide n;
-                                ///< 0 = one isotropic bin, b = b x b per face
-    int shOrder = 2;            ///< SH order of the result, 0..3 (forced to 0 when g == 0)
-    double tolerance = 1e-3;    ///< stop when the estimated scattered power still to come / injected < tolerance
-    int maxOrders = 1000;       ///< hard cap on propagation passes
-    bool krylov = true;         ///< allow GMRES acceleration when source iteration would be slow
-    int krylovAfter = 25;       ///< switch when plain iteration would need more than this many passes
-    int coarseKrylovAfter = 8;  ///< the same on the multi-resolution coarse grid (its passes are cheap)
-    int krylovRestart = 40;     ///< GMRES restart length (capped by a 2 GiB budget for Krylov vectors)
-    int linearSource = -1;      ///< -1 auto (on when a voxel is optically thicker than
-                                ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
-                                ///< inside each voxel (linear characteristics; 4x the unshot memory)
+    int directionsPerFace = 4;       ///< n: n x n propagation directions per cube face (6 n^2 in all)
+    int raysPerVoxel = 2;            ///< ray-map rays per voxel along each lateral axis (r^2 per voxel face)
+    int raysHigherOrders = -1;       ///< rays per voxel of the passes after the first (multiple scattering):
+                                     ///< -1 auto (1 when the two-grid solve runs, else raysPerVoxel), or 1..16
+    int binsPerFace = -1;            ///< unshot bins: -1 auto (1 isotropic bin when g == 0, else 2x2 per face
+                                     ///< when n is even, n x n for n = 1 or 3, else 1 per face); must divide n;
+                                     ///< 0 = one isotropic bin, b = b x b per face
+    int shOrder = 2;                 ///< SH order of the result, 0..3 (forced to 0 when g == 0)
+    double tolerance = 1e-3;         ///< stop when the estimated scattered power still to come / injected < tolerance
+    int maxOrders = 1000;            ///< hard cap on propagation passes
+    bool krylov = true;              ///< allow GMRES acceleration when source iteration would be slow
+    int krylovAfter = 25;            ///< switch when plain iteration would need more than this many passes
+    int coarseKrylovAfter = 8;       ///< the same on the multi-resolution coarse grid (its passes are cheap)
+    int krylovRestart = 40;          ///< GMRES restart length (capped by a 2 GiB budget for Krylov vectors)
+    int linearSource = -1;           ///< -1 auto (on when a voxel is optically thicker than
+                                     ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
+                                     ///< inside each voxel (linear characteristics; 4x the unshot memory)
     double linearSourceAbove = 2.0;  ///< auto threshold: largest per-voxel optical depth
     double linearSourceVoxelCap = 8.0;  ///< voxels optically thicker than this keep a constant source
-    int deltaM = -1;            ///< forward-peak truncation (delta-M, f = g^4): -1 auto (on when
-                                ///< g > deltaMAbove and the albedo is grey), 0 off, 1 on (g > 0, grey albedo)
-    double deltaMAbove = 0.0;   ///< auto threshold on g (measured better for g = 0.5, 0.85, 0.9, 0.99)
-    double envHotShare = 0.01;  ///< environment pixels holding at least this share of its power
-                                ///< (at most 16) are swept like suns, in their exact direction; 0 = off
-    int multires = -1;          ///< higher orders on a 2x coarser grid: -1 auto (when the block stores
-                                ///< at least multiresMinVoxels voxels), 0 off, 1 on
-    int multiresAfter = 1;      ///< passes at full resolution before the coarse grid takes over (>= 1)
-    int multiresMinVoxels = 1 << 16;  ///< auto threshold on stored voxels (2 x 32^3)
-    int multiresDirections = -1;  ///< directions per face on the coarse grid: -1 auto (n/2 when the
-                                  ///< bins still divide it and it is >= 2, else n)
-    int subdivide = 1;          ///< solve on voxels split k x k x k (same medium), average back: for
-                                ///< optically thick voxels, where a voxel-constant source leaks light
+    int deltaM = -1;                    ///< forward-peak truncation (delta-M, f = g^4): -1 auto (on when
+                                        ///< g > deltaMAbove and the albedo is grey), 0 off, 1 on (g > 0, grey albedo)
+    double deltaMAbove = 0.0;           ///< auto threshold on g (measured better for g = 0.5, 0.85, 0.9, 0.99)
+    double envHotShare = 0.01;          ///< environment pixels holding at least this share of its power
+                                        ///< (at most 16) are swept like suns, in their exact direction; 0 = off
+    int multires = -1;                  ///< higher orders on a 2x coarser grid: -1 auto (when the block stores
+                                        ///< at least multiresMinVoxels voxels), 0 off, 1 on
+    int multiresAfter = 1;              ///< passes at full resolution before the coarse grid takes over (>= 1)
+    int multiresMinVoxels = 1 << 16;    ///< auto threshold on stored voxels (2 x 32^3)
+    int multiresDirections = -1;        ///< directions per face on the coarse grid: -1 auto (n/2 when the
+                                        ///< bins still divide it and it is >= 2, else n)
+    int subdivide = 1;                  ///< solve on voxels split k x k x k (same medium), average back: for
+                                        ///< optically thick voxels, where a voxel-constant source leaks light
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass
     /// Also return each sun's beam transmittance (LpmResult::sunTerms) so its single
     /// scattering can be stored exactly beside the SH (core/sun_term.h); res.sh is unchanged.

@@ -30,16 +30,14 @@ private:
     using Clock = std::chrono::steady_clock;
     void passZero();
     void startFromSource();
-    bool iterate();  ///< source iteration; true when GMRES is to take over
+    bool iterate();                        ///< source iteration; true when GMRES is to take over
     void continueOnCoarse(int firstPass);  // core/two_grid.cpp
     void finishWithGmres();
     void clampNegativeLinear();
     void addToSourceSum(const std::vector<float>& src);
     void recordPass(int pass, const Tally& t, Clock::time_point start, bool physical = true);
     double sourcePower(const std::vector<float>& u) const;  ///< sigma_s U V w_d summed, mean over RGB
-    std::vector<Job> sourceJobs(const std::vector<float>& src) const {
-        return jobs_.sourceJobs(src, M_, m_.albedo);
-    }
+    std::vector<Job> sourceJobs(const std::vector<float>& src) const { return jobs_.sourceJobs(src, M_, m_.albedo); }
 
     const Medium& m_;
     const Lights& lights_;

@@ -40,13 +40,16 @@ void validateLights(const Lights& lights) {
         if (!(length(sun.toSun) > 0)) throw Error("LPM", "sun direction must be non-zero");
         for (int c = 0; c < 3; ++c)
             if (!(sun.irradiance[c] >= 0) || !std::isfinite(sun.irradiance[c]))
-                throw Error("LPM", "sun irradiance must be finite and non-negative, got " + std::to_string(sun.irradiance[c]));
+                throw Error("LPM",
+                            "sun irradiance must be finite and non-negative, got " + std::to_string(sun.irradiance[c]));
         if (!(sun.angularDiameterDeg >= 0 && sun.angularDiameterDeg < 180))
-            throw Error("LPM", "sun angular diameter must be in [0, 180) degrees, got " + std::to_string(sun.angularDiameterDeg));
+            throw Error("LPM", "sun angular diameter must be in [0, 180) degrees, got " +
+                                   std::to_string(sun.angularDiameterDeg));
     }
 }
 
-std::shared_ptr<const EnvBinning> binning(const Medium& m, const Lights& lights, const LpmSettings& s, LpmCache& cache) {
+std::shared_ptr<const EnvBinning> binning(const Medium& m, const Lights& lights, const LpmSettings& s,
+                                          LpmCache& cache) {
     if (!lights.env || !(lights.env->integral() > 0)) return nullptr;
     return cache.envBinning(*lights.env, s.directionsPerFace, m.localToWorld.transposed(), s.envHotShare);
 }
@@ -283,8 +286,8 @@ void LpmSolve::finishWithGmres() {
                                                size_t(std::max(4, s_.krylovRestart))));
     const double bNorm = std::sqrt(weightedDot(binW, B, B));
     std::vector<float> X;
-    const GmresReport rep =
-        solveGmres(A, B, binW, s_.tolerance * 0.1 * bNorm, restart, [&] { return pass_ < s_.maxOrders; }, X);
+    const GmresReport rep = solveGmres(
+        A, B, binW, s_.tolerance * 0.1 * bNorm, restart, [&] { return pass_ < s_.maxOrders; }, X);
     // Negative round-off in X would act as a negative source: clamp it.
     for (size_t i = 0; i < len; i += 3 * M_)
         for (int c = 0; c < 3; ++c) X[i + c] = std::max(0.0f, X[i + c]);
@@ -302,7 +305,8 @@ void LpmSolve::finishWithGmres() {
         for (size_t x = 0; x < N_; ++x)
             for (int c = 0; c < 3; ++c) {
                 const size_t i = (x * nb_ + d) * M_ * 3 + c;
-                miss += std::fabs(double(B[i]) + next_[i] - X[i]) * m_.sigmaT[x] * m_.albedo[c] * ff_->binWeight(d) * V_;
+                miss +=
+                    std::fabs(double(B[i]) + next_[i] - X[i]) * m_.sigmaT[x] * m_.albedo[c] * ff_->binWeight(d) * V_;
             }
     res_.passes.back().scattered = miss / 3.0;
     char buf[200];

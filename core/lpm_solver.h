@@ -11,43 +11,41 @@
 
 #include "core/lpm_settings.h"
 #include "core/medium.h"
-#include "core/solve_plan.h"
 #include "core/sh.h"
+#include "core/solve_plan.h"
 #include "core/sun_term.h"
 
 namespace lpm {
 
-
-
 struct PassStats {
-    int pass = 0;            ///< 0 = external light (scattered power = single scattering)
-    double injected = 0;     ///< power entering this pass (boundary + sources), mean over RGB
+    int pass = 0;         ///< 0 = external light (scattered power = single scattering)
+    double injected = 0;  ///< power entering this pass (boundary + sources), mean over RGB
     double absorbed = 0;
     double escaped = 0;
-    double scattered = 0;    ///< power scattered in this pass: the next pass's source
+    double scattered = 0;  ///< power scattered in this pass: the next pass's source
     double seconds = 0;
-    bool krylov = false;     ///< a GMRES matrix-vector pass (not a physical scattering order)
-    bool coarse = false;     ///< solved on the multi-resolution coarse grid
+    bool krylov = false;         ///< a GMRES matrix-vector pass (not a physical scattering order)
+    bool coarse = false;         ///< solved on the multi-resolution coarse grid
     std::uint64_t segments = 0;  ///< ray-segment updates of this pass
 };
 
 struct LpmResult {
-    int shOrder = 0;  ///< effective SH order of `sh`
-    int coeffs = 1;   ///< (shOrder + 1)^2
+    int shOrder = 0;        ///< effective SH order of `sh`
+    int coeffs = 1;         ///< (shOrder + 1)^2
     std::vector<float> sh;  ///< [voxel][coeff][rgb] SH coefficients of S(x, w)
     std::vector<PassStats> passes;
-    double injected = 0;   ///< external power (environment, suns, emission), mean over RGB
-    double absorbed = 0;   ///< summed over passes
-    double escaped = 0;    ///< summed over passes
-    double unshot = 0;     ///< scattered power of the last pass, not propagated further
-    double residual = 0;   ///< unshot / injected
+    double injected = 0;  ///< external power (environment, suns, emission), mean over RGB
+    double absorbed = 0;  ///< summed over passes
+    double escaped = 0;   ///< summed over passes
+    double unshot = 0;    ///< scattered power of the last pass, not propagated further
+    double residual = 0;  ///< unshot / injected
     bool converged = false;
     int directionCount = 0, binCount = 0;
     std::uint64_t segments = 0;  ///< ray-segment updates performed
     double seconds = 0;
     std::vector<std::string> decisions;  ///< the plan's decisions and why, then what the solve met while running
-    SolvePlan plan;               ///< the effect planner's plan this solve carried out
-    double sunTermSeconds = 0;    ///< time of the exact sun term's extra sweeps
+    SolvePlan plan;                      ///< the effect planner's plan this solve carried out
+    double sunTermSeconds = 0;           ///< time of the exact sun term's extra sweeps
     /// With LpmSettings::sunTerms: every sun swept (the lights' suns, then the environment's
     /// hot pixels), with its transmittance; res.sh includes their single scattering.
     std::vector<SunTerm> sunTerms;

@@ -87,7 +87,12 @@ struct RGB {
     RGB operator+(const RGB& o) const { return {r + o.r, g + o.g, b + o.b}; }
     RGB operator*(const RGB& o) const { return {r * o.r, g * o.g, b * o.b}; }
     RGB operator*(float s) const { return {r * s, g * s, b * s}; }
-    RGB& operator+=(const RGB& o) { r += o.r; g += o.g; b += o.b; return *this; }
+    RGB& operator+=(const RGB& o) {
+        r += o.r;
+        g += o.g;
+        b += o.b;
+        return *this;
+    }
     float maxComponent() const { return std::fmax(r, std::fmax(g, b)); }
     float average() const { return (r + g + b) / 3.0f; }
     bool isBlack() const { return r == 0 && g == 0 && b == 0; }

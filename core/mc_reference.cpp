@@ -280,7 +280,8 @@ struct Welford {
 std::vector<McVoxelEstimate> mcVoxelSH(const Medium& m, const Lights& lights, const std::vector<size_t>& voxels,
                                        int samples, int shOrder, const McSettings& s) {
     m.validate();
-    if (shOrder < 0 || shOrder > kMaxShOrder) throw Error("MC", "SH order must be in 0..3, got " + std::to_string(shOrder));
+    if (shOrder < 0 || shOrder > kMaxShOrder)
+        throw Error("MC", "SH order must be in 0..3, got " + std::to_string(shOrder));
     const Context c(m, lights, s);
     const int nc = shCount(shOrder);
     std::vector<double> gl(nc);

@@ -41,7 +41,7 @@ struct Medium {
     int tilesZ() const { return (nz + kTile - 1) / kTile; }
     /// Number of stored voxels (the size of sigmaT, emission and every per-voxel result).
     size_t voxelCount() const { return sparse() ? storedTiles * kTileVoxels : size_t(nx) * ny * nz; }
-    size_t storedTiles = 0;  ///< allocated tiles when sparse (set by allocate())
+    size_t storedTiles = 0;              ///< allocated tiles when sparse (set by allocate())
     std::vector<std::int32_t> slotTile;  ///< inverse of tileSlot (set by allocate())
     size_t blockVoxelCount() const { return size_t(nx) * ny * nz; }
     /// Storage index of voxel (x, y, z) of the block, or npos in an unallocated tile.
@@ -105,7 +105,8 @@ inline void Medium::coord(size_t v, int& x, int& y, int& z) const {
     z = tz * kTile + int(local / (kTile * kTile));
 }
 
-inline void Medium::allocate(int nx_, int ny_, int nz_, const std::vector<std::uint8_t>* tileActive, bool withEmission) {
+inline void Medium::allocate(int nx_, int ny_, int nz_, const std::vector<std::uint8_t>* tileActive,
+                             bool withEmission) {
     nx = nx_;
     ny = ny_;
     nz = nz_;
@@ -144,20 +145,22 @@ inline void validateMaterial(const RGB& albedo, double g) {
 
 inline void Sun::validate() const {
     if (!(length(toSun) > 0) || !std::isfinite(length(toSun)))
-        throw SettingError("Sun", "toSun", "must be non-zero and finite, got " + std::to_string(toSun.x) + "," +
-                                               std::to_string(toSun.y) + "," + std::to_string(toSun.z));
+        throw SettingError("Sun", "toSun",
+                           "must be non-zero and finite, got " + std::to_string(toSun.x) + "," +
+                               std::to_string(toSun.y) + "," + std::to_string(toSun.z));
     for (int c = 0; c < 3; ++c)
         if (!(irradiance[c] >= 0) || !std::isfinite(irradiance[c]))
-            throw SettingError("Sun", "irradiance", "must be finite and non-negative, got " + std::to_string(irradiance[c]));
+            throw SettingError("Sun", "irradiance",
+                               "must be finite and non-negative, got " + std::to_string(irradiance[c]));
     if (!(angularDiameterDeg >= 0 && angularDiameterDeg < 180))
-        throw SettingError("Sun", "angularDiameterDeg", "must be in [0, 180) degrees, got " +
-                                                            std::to_string(angularDiameterDeg));
+        throw SettingError("Sun", "angularDiameterDeg",
+                           "must be in [0, 180) degrees, got " + std::to_string(angularDiameterDeg));
 }
 
 inline void Medium::validate() const {
     if (nx <= 0 || ny <= 0 || nz <= 0)
-        throw Error("Medium", "grid dimensions must be positive, got " + std::to_string(nx) + "x" +
-                                  std::to_string(ny) + "x" + std::to_string(nz));
+        throw Error("Medium", "grid dimensions must be positive, got " + std::to_string(nx) + "x" + std::to_string(ny) +
+                                  "x" + std::to_string(nz));
     for (int a = 0; a < 3; ++a)
         if (!(voxelSize[a] > 0) || !std::isfinite(voxelSize[a]))
             throw Error("Medium", "voxel size must be positive and finite, got " + std::to_string(voxelSize[a]));

@@ -7,8 +7,7 @@
 
 namespace lpm {
 
-void parallelForChunks(std::size_t n, std::size_t grain,
-                       const std::function<void(std::size_t, std::size_t)>& body) {
+void parallelForChunks(std::size_t n, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body) {
     if (n == 0) return;
     if (grain == 0) grain = 1;
     const std::size_t chunks = (n + grain - 1) / grain;
@@ -25,8 +24,7 @@ void parallelForChunks(std::size_t n, std::size_t grain,
 }
 
 int maxThreads() {
-    return static_cast<int>(
-        tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+    return static_cast<int>(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
 }
 
 struct ThreadLimit::Impl {
@@ -35,8 +33,7 @@ struct ThreadLimit::Impl {
 
 ThreadLimit::ThreadLimit(int threads) : impl_(new Impl) {
     if (threads > 0)
-        impl_->control.reset(
-            new tbb::global_control(tbb::global_control::max_allowed_parallelism, threads));
+        impl_->control.reset(new tbb::global_control(tbb::global_control::max_allowed_parallelism, threads));
 }
 ThreadLimit::~ThreadLimit() = default;
 

@@ -9,8 +9,7 @@
 namespace lpm {
 
 /// Calls body(begin, end) for fixed chunks [k*grain, min(n,(k+1)*grain)) in parallel.
-void parallelForChunks(std::size_t n, std::size_t grain,
-                       const std::function<void(std::size_t, std::size_t)>& body);
+void parallelForChunks(std::size_t n, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body);
 
 /// Number of worker threads currently allowed.
 int maxThreads();

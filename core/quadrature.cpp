@@ -27,7 +27,8 @@ double CubeQuadrature::rectSolidAngle(double u0, double v0, double u1, double v1
 }
 
 CubeQuadrature::CubeQuadrature(int n) : n_(n) {
-    if (n < 1 || n > 64) throw Error("CubeQuadrature", "directions per face must be in 1..64, got " + std::to_string(n));
+    if (n < 1 || n > 64)
+        throw Error("CubeQuadrature", "directions per face must be in 1..64, got " + std::to_string(n));
     dirs_.resize(count());
     weights_.resize(count());
     for (int f = 0; f < 6; ++f)

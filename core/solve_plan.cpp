@@ -43,9 +43,9 @@ void planSubdivision(SceneSummary& scene, const LpmSettings& s, SolvePlan& plan)
     for (int& d : scene.dims) d *= k;
     scene.storedVoxels *= size_t(k) * k * k;
     scene.maxVoxelTau /= k;
-    plan.decisions.push_back({"solved on voxels split " + dims(k) + " and averaged back",
-                              "requested (--subdivide): the medium is the same, the voxels " + std::to_string(k) +
-                                  "x thinner optically"});
+    plan.decisions.push_back(
+        {"solved on voxels split " + dims(k) + " and averaged back",
+         "requested (--subdivide): the medium is the same, the voxels " + std::to_string(k) + "x thinner optically"});
 }
 
 /// Delta-M (Wiscombe 1977) with f = g^4 (core/delta_m.h): the propagation then sees the
@@ -56,7 +56,8 @@ void planDeltaM(SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
     if (s.deltaM < 0 && !(scene.g > s.deltaMAbove)) return;
     const RGB& a = scene.albedo;
     if (!(a.r == a.g && a.g == a.b)) {
-        plan.decisions.push_back({"no delta-M", "the albedo is not grey (the scaled extinction would differ per channel)"});
+        plan.decisions.push_back(
+            {"no delta-M", "the albedo is not grey (the scaled extinction would differ per channel)"});
         return;
     }
     const double g = scene.g, f = g * g * g * g, c = a.r, k = 1 - c * f;
@@ -79,7 +80,8 @@ void planAngular(const SceneSummary& scene, const LpmSettings& s, SolvePlan& pla
         plan.decisions.push_back({"no SH", "the coarse grid's S is not kept (two-grid continuation)"});
     } else if (plan.gOut == 0.0 && s.shOrder > 0) {
         plan.shOrder = 0;
-        plan.decisions.push_back({"SH order 0", "the phase function is isotropic (g = 0), so S has no directional part"});
+        plan.decisions.push_back(
+            {"SH order 0", "the phase function is isotropic (g = 0), so S has no directional part"});
     }
     const double shBytes = double(scene.storedVoxels) * shCount(plan.shOrder) * 3 * sizeof(float);
     if (plan.shOrder > 0)
@@ -94,10 +96,10 @@ void planAngular(const SceneSummary& scene, const LpmSettings& s, SolvePlan& pla
     const int n = s.directionsPerFace;
     plan.binsPerFace = plan.gPropagation == 0.0 ? 0 : (n % 2 == 0 ? 2 : (n <= 3 ? n : 1));
     const int b = plan.binsPerFace;
-    plan.decisions.push_back(plan.gPropagation == 0.0
-                                 ? PlanDecision{"one isotropic unshot bin", "g = 0"}
-                                 : PlanDecision{std::to_string(b) + "x" + std::to_string(b) + " unshot bins per cube face",
-                                                format("g = %.4g", plan.gPropagation)});
+    plan.decisions.push_back(plan.gPropagation == 0.0 ? PlanDecision{"one isotropic unshot bin", "g = 0"}
+                                                      : PlanDecision{std::to_string(b) + "x" + std::to_string(b) +
+                                                                         " unshot bins per cube face",
+                                                                     format("g = %.4g", plan.gPropagation)});
 }
 
 /// Source shape inside a voxel. A voxel-constant (step) source leaks light across
@@ -111,8 +113,7 @@ void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan&
         plan.decisions.push_back({shape, format(plan.linearSource ? "largest voxel optical depth %.3g > %.3g"
                                                                   : "largest voxel optical depth %.3g <= %.3g",
                                                 tau, s.linearSourceAbove)});
-    else
-        plan.decisions.push_back({std::string(shape) + " (requested)", ""});
+    else plan.decisions.push_back({std::string(shape) + " (requested)", ""});
     const double leakAbove = plan.linearSource ? s.linearSourceVoxelCap : 2.0;
     if (tau > leakAbove)
         plan.decisions.push_back(
@@ -131,8 +132,7 @@ void planLights(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan
     const int nd = 6 * s.directionsPerFace * s.directionsPerFace;
     if (scene.environment)
         plan.decisions.push_back({"environment pass", std::to_string(nd) + " directions through the boundary"});
-    else
-        plan.decisions.push_back({"no environment pass", "no environment light"});
+    else plan.decisions.push_back({"no environment pass", "no environment light"});
     if (scene.hotPixels > 0)
         plan.decisions.push_back(
             {"environment",
@@ -141,8 +141,7 @@ void planLights(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan
                     s.envHotShare, 100 * scene.hotShare, scene.hotPixels)});
     if (scene.emission)
         plan.decisions.push_back({"emission pass", "an emission grid: source sigma_a L_e swept along every direction"});
-    else
-        plan.decisions.push_back({"no emission source", "no emission grid"});
+    else plan.decisions.push_back({"no emission source", "no emission grid"});
     if (scene.suns > 0)
         plan.decisions.push_back({"sun pass", std::to_string(scene.suns) + " sun(s) swept in their exact direction"});
 }
@@ -155,15 +154,15 @@ void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& 
         const bool fits = scene.dims[0] >= 4 && scene.dims[1] >= 4 && scene.dims[2] >= 4;
         if (fits && (s.multires == 1 || big)) plan.coarseFrom = s.multiresAfter + 1;
         if (plan.coarseFrom > 0)
-            plan.decisions.push_back(
-                {"multi-resolution", "orders >= " + std::to_string(plan.coarseFrom) + " on a 2x coarser grid (" +
-                                         std::to_string(scene.storedVoxels) + " stored voxels" +
-                                         (s.multires == 1 ? ", requested)" : ")")});
+            plan.decisions.push_back({"multi-resolution", "orders >= " + std::to_string(plan.coarseFrom) +
+                                                              " on a 2x coarser grid (" +
+                                                              std::to_string(scene.storedVoxels) + " stored voxels" +
+                                                              (s.multires == 1 ? ", requested)" : ")")});
         else
             plan.decisions.push_back(
-                {"full resolution for every order",
-                 !fits ? "the block is under 4 voxels along an axis"
-                       : std::to_string(scene.storedVoxels) + " stored voxels < " + std::to_string(s.multiresMinVoxels)});
+                {"full resolution for every order", !fits ? "the block is under 4 voxels along an axis"
+                                                          : std::to_string(scene.storedVoxels) + " stored voxels < " +
+                                                                std::to_string(s.multiresMinVoxels)});
     }
     const int n = s.directionsPerFace, half = n / 2, b = plan.binsPerFace;
     plan.coarseDirectionsPerFace =
@@ -174,13 +173,13 @@ void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& 
     plan.raysSingle = s.raysPerVoxel;
     plan.raysHigher = s.raysHigherOrders > 0 ? s.raysHigherOrders : (plan.coarseFrom > 0 ? 1 : s.raysPerVoxel);
     if (plan.raysHigher != plan.raysSingle)
-        plan.decisions.push_back(
-            {"multiple scattering with " + std::to_string(plan.raysHigher) + " ray(s) per voxel" +
-                 (s.raysHigherOrders > 0 ? " (requested)" : " (two-grid solve)"),
-             s.raysHigherOrders > 0 ? "single scattering with " + std::to_string(plan.raysSingle)
-                                    : "the fine passes after single scattering propagate smooth sums of higher "
-                                      "orders; single scattering with " +
-                                          std::to_string(plan.raysSingle)});
+        plan.decisions.push_back({"multiple scattering with " + std::to_string(plan.raysHigher) + " ray(s) per voxel" +
+                                      (s.raysHigherOrders > 0 ? " (requested)" : " (two-grid solve)"),
+                                  s.raysHigherOrders > 0
+                                      ? "single scattering with " + std::to_string(plan.raysSingle)
+                                      : "the fine passes after single scattering propagate smooth sums of higher "
+                                        "orders; single scattering with " +
+                                            std::to_string(plan.raysSingle)});
 }
 
 void planAcceleration(const LpmSettings& s, SolvePlan& plan) {
@@ -198,8 +197,9 @@ void planCost(const SceneSummary& scene, const LpmSettings& s, int threads, Solv
     const int n = s.directionsPerFace, nd = 6 * n * n, M = plan.linearSource ? 4 : 1;
     const int nb = plan.binsPerFace == 0 ? 1 : 6 * plan.binsPerFace * plan.binsPerFace, nc = shCount(plan.shOrder);
     const bool isotropicFold = M == 1 && nb == 1 && nc == 1;
-    const double N = double(scene.storedVoxels), perThread = isotropicFold ? kPlannedRateBatched
-                                                             : (M == 4 ? kPlannedRateLinearSource : kPlannedRateGeneralFold);
+    const double N = double(scene.storedVoxels),
+                 perThread = isotropicFold ? kPlannedRateBatched
+                                           : (M == 4 ? kPlannedRateLinearSource : kPlannedRateGeneralFold);
     const double rate = perThread * std::max(1, threads);
     const double perSlice = segmentsPerSlice(n);
     plan.predictedSegmentsPerFinePass = nd * double(plan.raysHigher * plan.raysHigher) * N * perSlice;
@@ -208,20 +208,22 @@ void planCost(const SceneSummary& scene, const LpmSettings& s, int threads, Solv
     const double foldBytes = (isotropicFold ? 6.0 : 16.0) * N * 3 * M * sizeof(float);
     const double shBytes = N * nc * 3 * sizeof(float);
     plan.predictedBytes = unshotBytes + foldBytes + shBytes + N * sizeof(float) * (scene.emission ? 4 : 1);
-    const double lightSweeps = (plan.environmentPass || plan.emissionPass ? nd : 0) + plan.sunPasses + plan.hotPixelPasses;
+    const double lightSweeps =
+        (plan.environmentPass || plan.emissionPass ? nd : 0) + plan.sunPasses + plan.hotPixelPasses;
     for (PlanDecision& d : plan.decisions) {
         if (d.what == "environment pass" || d.what == "emission pass" || d.what == "sun pass")
             d.predictedSeconds = lightSweeps * double(plan.raysSingle * plan.raysSingle) * N * perSlice / rate;
-        if (d.what.find("unshot bin") != std::string::npos)
-            d.predictedBytes = unshotBytes + foldBytes;
+        if (d.what.find("unshot bin") != std::string::npos) d.predictedBytes = unshotBytes + foldBytes;
         if (d.what == "multi-resolution" || d.what == "full resolution for every order")
             d.predictedSeconds = plan.predictedSecondsPerFinePass;
     }
     if (plan.coarseFrom > 0) {
         const int nc2 = plan.coarseDirectionsPerFace;
-        const double coarse = 6.0 * nc2 * nc2 * plan.raysHigher * plan.raysHigher * (N / 8) * segmentsPerSlice(nc2) / rate;
-        plan.decisions.push_back({"coarse pass", format("%.0f directions per face on 1/8 of the voxels, %.3g of a fine pass",
-                                                        nc2, coarse / std::max(1e-30, plan.predictedSecondsPerFinePass)),
+        const double coarse =
+            6.0 * nc2 * nc2 * plan.raysHigher * plan.raysHigher * (N / 8) * segmentsPerSlice(nc2) / rate;
+        plan.decisions.push_back({"coarse pass",
+                                  format("%.0f directions per face on 1/8 of the voxels, %.3g of a fine pass", nc2,
+                                         coarse / std::max(1e-30, plan.predictedSecondsPerFinePass)),
                                   coarse});
     }
 }

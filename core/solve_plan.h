@@ -40,10 +40,10 @@ SceneSummary summarizeScene(const Medium& m, const Lights& lights, const EnvBinn
 
 /// One decision: what the solve does, why, and what it is predicted to cost.
 struct PlanDecision {
-    std::string what;               ///< e.g. "SH order 0"
-    std::string why;                ///< e.g. "the phase function is isotropic (g = 0), ..."
-    double predictedSeconds = -1;   ///< < 0: no time of its own
-    double predictedBytes = -1;     ///< < 0: no memory of its own
+    std::string what;                  ///< e.g. "SH order 0"
+    std::string why;                   ///< e.g. "the phase function is isotropic (g = 0), ..."
+    double predictedSeconds = -1;      ///< < 0: no time of its own
+    double predictedBytes = -1;        ///< < 0: no memory of its own
     std::string text() const;          ///< "what: why" (the same for any thread count: it goes into the bake)
     std::string textWithCost() const;  ///< text() plus the predicted cost, for -v
 };
@@ -63,13 +63,13 @@ struct SolvePlan {
     int hotPixelPasses = 0;        ///< environment hot spots swept as suns in pass 0
     int coarseFrom = 0;            ///< first order on the 2x coarser grid; 0 = full resolution throughout
     int coarseDirectionsPerFace = 0;
-    int raysSingle = 2;            ///< rays per voxel of pass 0 (single scattering)
-    int raysHigher = 2;            ///< rays per voxel of the later passes
-    bool krylov = true;            ///< GMRES may take over when plain iteration would be slow
-    int krylovAfter = 25;          ///< switch when plain iteration predicts more passes than this
+    int raysSingle = 2;                       ///< rays per voxel of pass 0 (single scattering)
+    int raysHigher = 2;                       ///< rays per voxel of the later passes
+    bool krylov = true;                       ///< GMRES may take over when plain iteration would be slow
+    int krylovAfter = 25;                     ///< switch when plain iteration predicts more passes than this
     double predictedSegmentsPerFinePass = 0;  ///< ray-segment updates of one full-resolution pass
     double predictedSecondsPerFinePass = 0;   ///< at the planner's throughput estimate
-    double predictedBytes = 0;     ///< the solve's main buffers
+    double predictedBytes = 0;                ///< the solve's main buffers
     std::vector<PlanDecision> decisions;
 
     /// One line per decision (text(), or textWithCost()).

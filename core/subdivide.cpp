@@ -21,7 +21,8 @@ Medium subdivided(const Medium& m, int k) {
         for (int tz = 0; tz < probe.tilesZ(); ++tz)
             for (int ty = 0; ty < probe.tilesY(); ++ty)
                 for (int tx = 0; tx < probe.tilesX(); ++tx) {
-                    const size_t ct = size_t(tx / k) + size_t(m.tilesX()) * (size_t(ty / k) + size_t(m.tilesY()) * (tz / k));
+                    const size_t ct =
+                        size_t(tx / k) + size_t(m.tilesX()) * (size_t(ty / k) + size_t(m.tilesY()) * (tz / k));
                     active[size_t(tx) + size_t(probe.tilesX()) * (size_t(ty) + size_t(probe.tilesY()) * tz)] =
                         m.tileSlot[ct] >= 0;
                 }

@@ -16,6 +16,7 @@ Medium subdivided(const Medium& m, int k);
 
 /// Per-voxel values ([voxel][width]) of the k-fold subdivided medium `fm`, averaged back
 /// onto `m`'s voxels.
-std::vector<float> averageBack(const Medium& m, const Medium& fm, int k, const std::vector<float>& fine, size_t width = 1);
+std::vector<float> averageBack(const Medium& m, const Medium& fm, int k, const std::vector<float>& fine,
+                               size_t width = 1);
 
 }  // namespace lpm

@@ -9,9 +9,7 @@
 
 namespace lpm {
 
-double sunTermPhase(const SunTerm& t, double g, const Vec3& w) {
-    return henyeyGreenstein(dot(-t.toSun, w), g);
-}
+double sunTermPhase(const SunTerm& t, double g, const Vec3& w) { return henyeyGreenstein(dot(-t.toSun, w), g); }
 
 void addSunTermSh(const SunTerm& t, double g, int order, float T, double sign, float* coeffs) {
     double y[16];

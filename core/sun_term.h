@@ -16,10 +16,10 @@
 namespace lpm {
 
 struct SunTerm {
-    Vec3 toSun{0, 1, 0};        ///< world direction toward the sun (unit)
-    RGB irradiance{0, 0, 0};    ///< on a plane facing the sun
+    Vec3 toSun{0, 1, 0};      ///< world direction toward the sun (unit)
+    RGB irradiance{0, 0, 0};  ///< on a plane facing the sun
     double angularDiameterDeg = 0;
-    bool fromEnvironment = false;  ///< a hot pixel of the environment, swept as a sun
+    bool fromEnvironment = false;      ///< a hot pixel of the environment, swept as a sun
     std::vector<float> transmittance;  ///< per stored voxel of the medium, in [0, 1]
 };
 

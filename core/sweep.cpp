@@ -63,7 +63,6 @@ inline float expNegInline(float x) {
     return x < 87.0f ? value : 0.0f;
 }
 
-
 // Layout of a plane chunk: the 8 voxels of one tile along one voxel row, as 8 arrays of 8
 // floats (sigma, source q0..q2, deposit d0..d2, 1/sigma or 0 where sigma = 0): 64 floats
 // (one 256-byte block), chunks of a row contiguous.
@@ -94,9 +93,12 @@ LPM_SIMD_CLONES void segmentChunks(int chunks, float len, float dk, float* __res
             const float e2l = (len - e1l) * invSig[i];
             // Series of (1 - e^-t)/t and (t - 1 + e^-t)/t^2, truncation < 2e-9 below 1/4.
             const float e1s =
-                len * (1.0f - tau * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120 - tau * (1.0f / 720))))));
-            const float e2s = len2 * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120 - tau * (1.0f / 720 -
-                                                                                                     tau * (1.0f / 5040))))));
+                len *
+                (1.0f - tau * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120 - tau * (1.0f / 720))))));
+            const float e2s =
+                len2 *
+                (0.5f -
+                 tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120 - tau * (1.0f / 720 - tau * (1.0f / 5040))))));
             const bool small = tau < 0.25f;
             const float e1 = small ? e1s : e1l, e2 = small ? e2s : e2l;
             if (Source) {
@@ -180,7 +182,8 @@ struct Event {
 
 // Merges a class's u and v crossings into its ordered events (u first on ties, as the
 // reference DDA); zero-length segments are dropped.
-void mergeEvents(const std::vector<double>& lu, const std::vector<double>& lv, double sliceLen, std::vector<Event>& ev) {
+void mergeEvents(const std::vector<double>& lu, const std::vector<double>& lv, double sliceLen,
+                 std::vector<Event>& ev) {
     ev.clear();
     size_t i = 0, j = 0;
     double lam = 0;
@@ -222,7 +225,8 @@ struct AxisFrame {
         t3[a] = layer;
         t3[u] = tu;
         t3[v] = tv;
-        const std::int32_t s = m.tileSlot[size_t(t3[0]) + size_t(m.tilesX()) * (size_t(t3[1]) + size_t(m.tilesY()) * t3[2])];
+        const std::int32_t s =
+            m.tileSlot[size_t(t3[0]) + size_t(m.tilesX()) * (size_t(t3[1]) + size_t(m.tilesY()) * t3[2])];
         return s < 0 ? -2 : s;
     }
     // Where tile (layer, tu, tv) lies in storage: the storage index of its first voxel,
@@ -391,7 +395,8 @@ public:
     // phi += k * the layer's deposits (allocated voxels only); sums sigma d and q.
     void scatter(int layer, float k, float* phi, double sca[3], double src[3]) const {
         for (int tv = 0; tv < f_.tnv; ++tv)
-            for (int tu = 0; tu < f_.tnu; ++tu) scatterTile(f_, rows_.data(), P_.data(), layer, tu, tv, k, phi, sca, src);
+            for (int tu = 0; tu < f_.tnu; ++tu)
+                scatterTile(f_, rows_.data(), P_.data(), layer, tu, tv, k, phi, sca, src);
     }
 
     const PlaneRow* rows() const { return rows_.data(); }
@@ -403,8 +408,8 @@ public:
 
 private:
     AxisFrame f_;
-    std::vector<PlaneRow> rows_;  // per tile row, over all layers
-    std::vector<float> P_;        // the current tile layer
+    std::vector<PlaneRow> rows_;        // per tile row, over all layers
+    std::vector<float> P_;              // the current tile layer
     std::vector<int> spanLo_, spanHi_;  // per voxel row: columns in allocated tiles of this layer
     std::vector<int> occupied_;         // voxel rows with spanLo < spanHi
 };
@@ -789,10 +794,8 @@ private:
             const int chunks = (hi - lo + K - 1) / K;
             prepareColumns(row, lo, lo + chunks * K);
             float* plane = &planes_->data()[planeIndex(planes_->rows(), vr, slice_, lo)];
-            if (job_.src)
-                segmentChunks<true>(chunks, float(e.len), dk_, plane, at(row, 0, lo), size_t(cap_[row]));
-            else
-                segmentChunks<false>(chunks, float(e.len), dk_, plane, at(row, 0, lo), size_t(cap_[row]));
+            if (job_.src) segmentChunks<true>(chunks, float(e.len), dk_, plane, at(row, 0, lo), size_t(cap_[row]));
+            else segmentChunks<false>(chunks, float(e.len), dk_, plane, at(row, 0, lo), size_t(cap_[row]));
             segs_ += std::uint64_t(hi - lo);
         }
     }
@@ -804,24 +807,24 @@ private:
     const float depositScale_;
     std::unique_ptr<LayerPlanes> own_;  // own planes, when not shared
     LayerPlanes* planes_ = nullptr;     // the planes swept through (own or a batch's)
-    float dk_ = 1.0f;  // deposit factor in the kernel
+    float dk_ = 1.0f;                   // deposit factor in the kernel
     int slice_ = 0;
-    size_t rows_count_ = 0;            // ray rows
+    size_t rows_count_ = 0;  // ray rows
     static constexpr int kMaxSlack = 64;
-    int slack_ = 8;                    // dense: columns of a slot beyond the plane's width
+    int slack_ = 8;                                  // dense: columns of a slot beyond the plane's width
     static constexpr size_t kSparseBlockRatio = 16;  // dense: at least 1/16 of the block's tiles stored
     bool dense_ = true;
-    int C_ = 0;                        // dense: columns of a row's slot, nu rounded up to tiles plus slack
-    std::unique_ptr<float[]> arena_;   // dense: the rows' slots, 3 channels of C_ lanes each, in row order
-    std::vector<float*> block_;        // per written ray row: its storage (sparse: null until touched)
-    std::vector<int> cap_, org_;       // per written ray row: its window holds columns org .. org + cap - 1
-    std::vector<int> vlo_, vhi_;       // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
+    int C_ = 0;                           // dense: columns of a row's slot, nu rounded up to tiles plus slack
+    std::unique_ptr<float[]> arena_;      // dense: the rows' slots, 3 channels of C_ lanes each, in row order
+    std::vector<float*> block_;           // per written ray row: its storage (sparse: null until touched)
+    std::vector<int> cap_, org_;          // per written ray row: its window holds columns org .. org + cap - 1
+    std::vector<int> vlo_, vhi_;          // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
     std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)
-    std::vector<int> pending_;  // per ray row: u crossings not yet applied (besides its class's, below)
-    std::vector<int> seenU_;    // per ray row: its class's u-crossing count when it last synced
-    std::vector<int> classU_;   // per class: u crossings before the current slice
-    std::vector<int> uCount_;   // per class: u crossings in the current slice
-    std::vector<std::uint32_t> mark_;  // per ray row: stamp_ when a candidate of the current slice
+    std::vector<int> pending_;            // per ray row: u crossings not yet applied (besides its class's, below)
+    std::vector<int> seenU_;              // per ray row: its class's u-crossing count when it last synced
+    std::vector<int> classU_;             // per class: u crossings before the current slice
+    std::vector<int> uCount_;             // per class: u crossings in the current slice
+    std::vector<std::uint32_t> mark_;     // per ray row: stamp_ when a candidate of the current slice
     std::uint32_t stamp_ = 0;
     std::vector<size_t> cand_;  // the current slice's candidate rows
     std::vector<ClassState> stU_, stV_;
@@ -868,7 +871,8 @@ void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r,
             }
         if (sweeps.empty()) continue;
         double sca[3] = {0, 0, 0}, src[3] = {0, 0, 0};
-        const int layers = (std::array<int, 3>{m.nx, m.ny, m.nz}[size_t(first.axis)] + Medium::kTile - 1) / Medium::kTile;
+        const int layers =
+            (std::array<int, 3>{m.nx, m.ny, m.nz}[size_t(first.axis)] + Medium::kTile - 1) / Medium::kTile;
         for (int l = 0; l < layers; ++l) {
             const int layer = sweeps[0]->layerAt(l);
             const bool any = planes.gather(layer, first);

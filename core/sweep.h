@@ -40,17 +40,17 @@ struct Tally {
 /// One propagation job: a direction swept through the whole grid, and how its deposit
 /// folds into the SH result and the next order's unshot bins.
 struct Job {
-    Vec3 w;               ///< local unit travel direction
+    Vec3 w;  ///< local unit travel direction
     int axis = 0, sign = 1;
-    RGB boundary;         ///< radiance (irradiance for suns) entering through the faces
-    double weight = 1;    ///< solid angle of the direction bin (1 for suns)
-    const float* src = nullptr;  ///< per-voxel RGB radiance feeding the source, or null
-    size_t srcStride = 3;        ///< floats between consecutive voxels in src
-    bool srcLinear = false;      ///< src also holds the x, y, z slopes (3 RGB triples after the mean)
-    RGB srcScale;         ///< Q_c = sigma_t * srcScale_c * src_c
+    RGB boundary;                         ///< radiance (irradiance for suns) entering through the faces
+    double weight = 1;                    ///< solid angle of the direction bin (1 for suns)
+    const float* src = nullptr;           ///< per-voxel RGB radiance feeding the source, or null
+    size_t srcStride = 3;                 ///< floats between consecutive voxels in src
+    bool srcLinear = false;               ///< src also holds the x, y, z slopes (3 RGB triples after the mean)
+    RGB srcScale;                         ///< Q_c = sigma_t * srcScale_c * src_c
     double offsetU = 0.5, offsetV = 0.5;  ///< ray-lattice offset within a lattice cell, [0, 1)
-    std::vector<double> shCoef;   ///< per SH coefficient: multiplies Phi (includes 1/V)
-    std::vector<double> binCoef;  ///< per unshot bin: multiplies Phi (includes 1/V)
+    std::vector<double> shCoef;           ///< per SH coefficient: multiplies Phi (includes 1/V)
+    std::vector<double> binCoef;          ///< per unshot bin: multiplies Phi (includes 1/V)
 };
 
 /// Index of the largest component of w.

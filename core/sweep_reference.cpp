@@ -29,7 +29,10 @@ struct LatticeMoments {
     LatticeMoments() = default;
     LatticeMoments(double o, double d, int r, int t) {
         // Antiderivatives of frac(x) - 1/2 and (frac(x) - 1/2)^2.
-        auto G1 = [](double x) { const double f = x - std::floor(x); return 0.5 * f * f - 0.5 * f; };
+        auto G1 = [](double x) {
+            const double f = x - std::floor(x);
+            return 0.5 * f * f - 0.5 * f;
+        };
         auto G2 = [](double x) {
             const double fl = std::floor(x), f = x - fl, h = f - 0.5;
             return fl / 12 + (h * h * h + 0.125) / 3;
@@ -199,7 +202,8 @@ private:
         const double em = std::expm1(-tau);  // T - 1
         const double T = 1 + em;
         const double e1 = tau < 1e-4 ? len * (1 - tau * (0.5 - tau / 6)) : len * (-em) / tau;
-        const double e2 = tau < 1e-3 ? len * len * (0.5 - tau * (1.0 / 6 - tau / 24)) : len * len * (tau + em) / (tau * tau);
+        const double e2 =
+            tau < 1e-3 ? len * len * (0.5 - tau * (1.0 / 6 - tau / 24)) : len * len * (tau + em) / (tau * tau);
         for (int c = 0; c < 3; ++c) {
             const double Q = src ? s * scale_[c] * src[vox * job_.srcStride + c] : 0.0;
             const double I = Lk[c] * e1 + Q * e2;  // Int L ds over the segment
@@ -213,7 +217,8 @@ private:
 
     // A segment with a linear source: the ray enters voxel (cu, cv) of the slice at lam
     // and leaves at lamN (fractions of the slice); deposits the mean and first moments.
-    void linearSegment(double* Lk, size_t vox, double len, double p, double q, int cu, int cv, double lam, double lamN) {
+    void linearSegment(double* Lk, size_t vox, double len, double p, double q, int cu, int cv, double lam,
+                       double lamN) {
         const double s = m_.sigmaT[vox];
         const double tau = s * len;
         float* ph = phi_ + vox * 3 * M;
@@ -286,8 +291,8 @@ private:
     std::vector<double> pu_, pv_, L_;  // per ray: lateral position (voxels), radiance
     double inj_[3] = {0, 0, 0}, esc_[3] = {0, 0, 0}, abs_[3] = {0, 0, 0}, sca_[3] = {0, 0, 0};
     std::uint64_t segs_ = 0;
-    int ia_ = 0;       // the current slice's index along the sweep axis
-    size_t base_ = 0;  // its storage offset (dense media)
+    int ia_ = 0;              // the current slice's index along the sweep axis
+    size_t base_ = 0;         // its storage offset (dense media)
     LatticeMoments lu_, lv_;  // the current slice's lattice moments (linear source)
 };
 

@@ -92,7 +92,8 @@ void LpmSolve::continueOnCoarse(int firstPass) {
                   "one fine pass, %d coarse passes; source left %.3g of the input",
                   mc.nx, mc.ny, mc.nz, cs.directionsPerFace, cycles, coarsePasses,
                   res_.injected > 0 ? std::fabs(rPower) / res_.injected : 0.0);
-    if (s_.progress) s_.progress("two-grid: " + std::to_string(std::chrono::duration<double>(Clock::now() - tp).count()) + " s");
+    if (s_.progress)
+        s_.progress("two-grid: " + std::to_string(std::chrono::duration<double>(Clock::now() - tp).count()) + " s");
     res_.decisions.push_back(buf);
     continuedOnCoarse_ = true;
 }

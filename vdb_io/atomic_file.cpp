@@ -2,8 +2,8 @@
 #include "vdb_io/atomic_file.h"
 
 #include <fcntl.h>
-#include <sys/statvfs.h>
 #include <signal.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -69,7 +69,8 @@ AtomicOutput::AtomicOutput(const std::string& finalPath, const std::vector<std::
     if (::access(dir.c_str(), W_OK) != 0)
         throw OutputError(kComp, "cannot write to output directory '" + dir.string() + "': " + std::strerror(errno) +
                                      " (for '" + final_ + "')");
-    temp_ = (dir / ("." + p.stem().string() + ".lpmtmp-" + std::to_string(::getpid()) + p.extension().string())).string();
+    temp_ =
+        (dir / ("." + p.stem().string() + ".lpmtmp-" + std::to_string(::getpid()) + p.extension().string())).string();
     if (temp_.size() < sizeof(g_temp)) {
         std::memcpy(g_temp, temp_.c_str(), temp_.size() + 1);
         g_active = true;

@@ -19,7 +19,9 @@ struct Digest {
         bytes(s.data(), s.size());
     }
     template <typename T>
-    void value(const T& v) { bytes(&v, sizeof v); }
+    void value(const T& v) {
+        bytes(&v, sizeof v);
+    }
 };
 
 template <typename GridT>
@@ -42,8 +44,9 @@ void addGrid(Digest& d, const openvdb::GridBase& g, const std::string& path) {
         for (int c = 0; c < 4; ++c) d.value(m(r, c));
     if (const auto* f = dynamic_cast<const openvdb::FloatGrid*>(&g)) addActiveValues(d, *f);
     else if (const auto* v = dynamic_cast<const openvdb::Vec3SGrid*>(&g)) addActiveValues(d, *v);
-    else throw InputError("digest", "'" + path + "': grid '" + g.getName() + "' of type " + g.valueType() +
-                                        " is not one a bake holds");
+    else
+        throw InputError("digest", "'" + path + "': grid '" + g.getName() + "' of type " + g.valueType() +
+                                       " is not one a bake holds");
 }
 
 }  // namespace

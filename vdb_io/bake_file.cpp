@@ -63,7 +63,7 @@ typename GridT::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake& b,
     g->tree().topologyUnion(topo.tree());
     openvdb::tree::LeafManager<typename GridT::TreeType> leaves(g->tree());
     if (b.scale != 1.0 || b.affine) {
-        leaves.foreach([&](typename GridT::TreeType::LeafNodeType& leaf, size_t) {
+        leaves.foreach ([&](typename GridT::TreeType::LeafNodeType& leaf, size_t) {
             for (auto it = leaf.beginValueOn(); it; ++it) {
                 const Stencil s = stencilAt(b, it.getCoord());
                 ValueT v(0);
@@ -74,7 +74,7 @@ typename GridT::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake& b,
         });
         return g;
     }
-    leaves.foreach([&](typename GridT::TreeType::LeafNodeType& leaf, size_t) {
+    leaves.foreach ([&](typename GridT::TreeType::LeafNodeType& leaf, size_t) {
         for (auto it = leaf.beginValueOn(); it; ++it) {
             const openvdb::Coord d = it.getCoord() - b.blockMin;
             if (d.x() < 0 || d.y() < 0 || d.z() < 0 || d.x() >= b.nx || d.y() >= b.ny || d.z() >= b.nz) continue;
@@ -110,7 +110,8 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
     rep.shellVoxels = lt.shellVoxels;
     rep.shellDropped = lt.shellDropped;
     if (lt.shellDropped > 0)
-        rep.warnings.push_back(std::to_string(lt.shellDropped) + " voxel(s) of the one-voxel shell around the density "
+        rep.warnings.push_back(std::to_string(lt.shellDropped) +
+                               " voxel(s) of the one-voxel shell around the density "
                                "have no solved S (solve block too small) and are left inactive: the volume's edge "
                                "renders dark there");
 
@@ -126,7 +127,7 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
             g = topo->deepCopy();
         }
         g->setName("sh_" + std::to_string(k));
-        g->setGridClass(openvdb::GRID_UNKNOWN);  // order >= 1 terms go negative: not a fog volume
+        g->setGridClass(openvdb::GRID_UNKNOWN);    // order >= 1 terms go negative: not a fog volume
         g->setVectorType(openvdb::VEC_INVARIANT);  // colour, not a vector: DCCs must not rotate it
         const int l = shBand(k);
         g->insertMeta("lpm:sh_index", openvdb::Int32Metadata(k));
@@ -162,8 +163,8 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
         t->setName(sunTransmittanceGridName(int(k)));
         t->setGridClass(openvdb::GRID_FOG_VOLUME);
         t->insertMeta("lpm:description",
-                      openvdb::StringMetadata("transmittance toward sun " + std::to_string(k) +
-                                              " (lpm:sun_term_" + std::to_string(k) + "_*): S += E T p_HG"));
+                      openvdb::StringMetadata("transmittance toward sun " + std::to_string(k) + " (lpm:sun_term_" +
+                                              std::to_string(k) + "_*): S += E T p_HG"));
         grids.push_back(t);
     }
     if (b.emission) {
@@ -304,8 +305,7 @@ std::string metaString(const openvdb::MetaMap& m, const std::string& key, const 
 RGB metaRgb(const openvdb::MetaMap& m, const std::string& key, const RGB& fallback) {
     if (auto v = m.getMetadata<openvdb::Vec3DMetadata>(key))
         return RGB(float(v->value().x()), float(v->value().y()), float(v->value().z()));
-    if (auto v = m.getMetadata<openvdb::Vec3SMetadata>(key))
-        return RGB(v->value().x(), v->value().y(), v->value().z());
+    if (auto v = m.getMetadata<openvdb::Vec3SMetadata>(key)) return RGB(v->value().x(), v->value().y(), v->value().z());
     return fallback;
 }
 

@@ -33,15 +33,15 @@ constexpr int kBakeFormatVersion = 2;
 /// corner + (d + 1) / scale); an input voxel gets the trilinear interpolation of the dense
 /// voxel-centred values at its centre, clamped at the block's border.
 struct DenseBake {
-    openvdb::Coord blockMin;   ///< index coordinate of dense voxel (0,0,0) (scale 1)
-    double scale = 1.0;        ///< dense voxels per input voxel along each axis
+    openvdb::Coord blockMin;               ///< index coordinate of dense voxel (0,0,0) (scale 1)
+    double scale = 1.0;                    ///< dense voxels per input voxel along each axis
     openvdb::Vec3d corner{0.0, 0.0, 0.0};  ///< index-space low corner of the block (scale != 1)
     bool affine = false;                   ///< block coordinate of input index c = M c + t
     double M[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
     double t[3] = {0, 0, 0};
     int nx = 0, ny = 0, nz = 0;
-    int coeffs = 1;            ///< SH coefficients per voxel
-    const float* sh = nullptr; ///< [voxel][coeff][rgb], x fastest; null for an empty bake
+    int coeffs = 1;                 ///< SH coefficients per voxel
+    const float* sh = nullptr;      ///< [voxel][coeff][rgb], x fastest; null for an empty bake
     const RGB* emission = nullptr;  ///< per dense voxel, or null
     /// Direction-averaged S per dense voxel [voxel][rgb] (the sun terms' share included);
     /// null: sh_0 * Y00.
@@ -77,7 +77,7 @@ struct BakeWriteOptions {
 
 struct BakeWriteReport {
     std::vector<std::string> warnings;
-    double maxAbsValue = 0;       ///< largest |value| over the SH grids
+    double maxAbsValue = 0;           ///< largest |value| over the SH grids
     std::uint64_t voxelsWritten = 0;  ///< active voxels per lighting grid (density's + shell)
     std::uint64_t shellVoxels = 0;    ///< of which the shell around the density's active voxels
     std::uint64_t shellDropped = 0;   ///< shell voxels without solved S, left inactive (0 from readVolume)
@@ -103,7 +103,7 @@ struct BakeFile {
     openvdb::Vec3SGrid::Ptr scatter, emission;
     openvdb::FloatGrid::Ptr density;
     std::vector<openvdb::FloatGrid::Ptr> sunTransmittance;  ///< sun_transmittance_0.. (as many as found in a row)
-    int shOrder = -1;  ///< from metadata, -1 if absent
+    int shOrder = -1;                                       ///< from metadata, -1 if absent
 };
 
 /// Reads every grid and the file metadata. Throws InputError if the file cannot be read.

@@ -28,7 +28,6 @@ PinholeCamera framingCamera(const BakeFile& bake, double fovYDeg, int width, int
 /// Scene-linear RGB per pixel ([pixel][rgb], row 0 at the top) in the bake's working
 /// colour space. `env` (may be null) is drawn behind the volume. Needs bake.density and
 /// a valid bake (validateBake). Runs in parallel over rows; non-finite results become 0.
-std::vector<float> renderBake(const BakeFile& bake, const PinholeCamera& camera, const EnvMap* env,
-                              double stepVoxels);
+std::vector<float> renderBake(const BakeFile& bake, const PinholeCamera& camera, const EnvMap* env, double stepVoxels);
 
 }  // namespace lpm

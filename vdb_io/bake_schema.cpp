@@ -7,13 +7,20 @@ namespace lpm {
 
 const char* metaTypeName(MetaType t) {
     switch (t) {
-        case MetaType::String: return "string";
-        case MetaType::Double: return "double";
-        case MetaType::Int: return "int32";
-        case MetaType::Int64: return "int64";
-        case MetaType::Bool: return "bool";
-        case MetaType::Vec3d: return "vec3d";
-        case MetaType::Vec3i: return "vec3i";
+        case MetaType::String:
+            return "string";
+        case MetaType::Double:
+            return "double";
+        case MetaType::Int:
+            return "int32";
+        case MetaType::Int64:
+            return "int64";
+        case MetaType::Bool:
+            return "bool";
+        case MetaType::Vec3d:
+            return "vec3d";
+        case MetaType::Vec3i:
+            return "vec3i";
     }
     return "?";
 }
@@ -28,16 +35,78 @@ MetaKey sunTermKey(int k, SunTermField f) {
 
 const std::vector<MetaKey>& bakeSchema() {
     using namespace bakekey;
-    static const std::vector<MetaKey> all = {
-        formatVersion, version, shOrder, shCount, shBasis, shGrids, shNegativeLobes, quantity, usage, units, frame,
-        upAxis, workingColorspace, densityGrid, densityScale, albedo, g, phaseFunction, rendererGrids, envFile,
-        envColorspace, envRotateYDeg, envScale, envOrientation, sunCount, suns, temperatureGrid, temperatureScale,
-        temperatureOffset, temperatureIntensity, temperatureConvention, emissionGrid, emissionScale,
-        emissionConvention, lights, directionsPerFace, raysPerVoxel, raysHigherOrders, binsPerFace, tolerance,
-        maxOrders, subdivide, multires, multiresAfter, sourceShape, deltaM, envHotShare, solveScale, solveGridDims,
-        solveVoxelSize, krylov, solver, passes, residual, converged, decisions, inputFile, inputGrid,
-        inputGridIndex, empty, sanitizedValues, storage, timeReadS, timeEnvS, timeSolveS, timings, commandLine,
-        settings, settingsDigest, sunTermCount, sunTermG, sunTermConvention};
+    static const std::vector<MetaKey> all = {formatVersion,
+                                             version,
+                                             shOrder,
+                                             shCount,
+                                             shBasis,
+                                             shGrids,
+                                             shNegativeLobes,
+                                             quantity,
+                                             usage,
+                                             units,
+                                             frame,
+                                             upAxis,
+                                             workingColorspace,
+                                             densityGrid,
+                                             densityScale,
+                                             albedo,
+                                             g,
+                                             phaseFunction,
+                                             rendererGrids,
+                                             envFile,
+                                             envColorspace,
+                                             envRotateYDeg,
+                                             envScale,
+                                             envOrientation,
+                                             sunCount,
+                                             suns,
+                                             temperatureGrid,
+                                             temperatureScale,
+                                             temperatureOffset,
+                                             temperatureIntensity,
+                                             temperatureConvention,
+                                             emissionGrid,
+                                             emissionScale,
+                                             emissionConvention,
+                                             lights,
+                                             directionsPerFace,
+                                             raysPerVoxel,
+                                             raysHigherOrders,
+                                             binsPerFace,
+                                             tolerance,
+                                             maxOrders,
+                                             subdivide,
+                                             multires,
+                                             multiresAfter,
+                                             sourceShape,
+                                             deltaM,
+                                             envHotShare,
+                                             solveScale,
+                                             solveGridDims,
+                                             solveVoxelSize,
+                                             krylov,
+                                             solver,
+                                             passes,
+                                             residual,
+                                             converged,
+                                             decisions,
+                                             inputFile,
+                                             inputGrid,
+                                             inputGridIndex,
+                                             empty,
+                                             sanitizedValues,
+                                             storage,
+                                             timeReadS,
+                                             timeEnvS,
+                                             timeSolveS,
+                                             timings,
+                                             commandLine,
+                                             settings,
+                                             settingsDigest,
+                                             sunTermCount,
+                                             sunTermG,
+                                             sunTermConvention};
     return all;
 }
 
@@ -45,8 +114,8 @@ namespace {
 
 void expectType(const MetaKey& k, MetaType t) {
     if (k.type != t)
-        throw std::logic_error("metadata key " + std::string(k.name) + " is " + metaTypeName(k.type) +
-                               ", written as " + metaTypeName(t));
+        throw std::logic_error("metadata key " + std::string(k.name) + " is " + metaTypeName(k.type) + ", written as " +
+                               metaTypeName(t));
 }
 
 const std::string& name(const MetaKey& k) { return k.name; }
@@ -100,7 +169,8 @@ bool getBool(const openvdb::MetaMap& m, const MetaKey& k, bool fallback) {
     return fallback;
 }
 Vec3 getVec3(const openvdb::MetaMap& m, const MetaKey& k, const Vec3& fallback) {
-    if (auto v = m.getMetadata<openvdb::Vec3DMetadata>(name(k))) return {v->value().x(), v->value().y(), v->value().z()};
+    if (auto v = m.getMetadata<openvdb::Vec3DMetadata>(name(k)))
+        return {v->value().x(), v->value().y(), v->value().z()};
     return fallback;
 }
 RGB getRgb(const openvdb::MetaMap& m, const MetaKey& k, const RGB& fallback) {
@@ -111,13 +181,20 @@ RGB getRgb(const openvdb::MetaMap& m, const MetaKey& k, const RGB& fallback) {
 
 bool hasKey(const openvdb::MetaMap& m, const MetaKey& k) {
     switch (k.type) {
-        case MetaType::String: return bool(m.getMetadata<openvdb::StringMetadata>(name(k)));
-        case MetaType::Double: return bool(m.getMetadata<openvdb::DoubleMetadata>(name(k)));
-        case MetaType::Int: return bool(m.getMetadata<openvdb::Int32Metadata>(name(k)));
-        case MetaType::Int64: return bool(m.getMetadata<openvdb::Int64Metadata>(name(k)));
-        case MetaType::Bool: return bool(m.getMetadata<openvdb::BoolMetadata>(name(k)));
-        case MetaType::Vec3d: return bool(m.getMetadata<openvdb::Vec3DMetadata>(name(k)));
-        case MetaType::Vec3i: return bool(m.getMetadata<openvdb::Vec3IMetadata>(name(k)));
+        case MetaType::String:
+            return bool(m.getMetadata<openvdb::StringMetadata>(name(k)));
+        case MetaType::Double:
+            return bool(m.getMetadata<openvdb::DoubleMetadata>(name(k)));
+        case MetaType::Int:
+            return bool(m.getMetadata<openvdb::Int32Metadata>(name(k)));
+        case MetaType::Int64:
+            return bool(m.getMetadata<openvdb::Int64Metadata>(name(k)));
+        case MetaType::Bool:
+            return bool(m.getMetadata<openvdb::BoolMetadata>(name(k)));
+        case MetaType::Vec3d:
+            return bool(m.getMetadata<openvdb::Vec3DMetadata>(name(k)));
+        case MetaType::Vec3i:
+            return bool(m.getMetadata<openvdb::Vec3IMetadata>(name(k)));
     }
     return false;
 }
@@ -126,10 +203,8 @@ std::vector<std::string> schemaProblems(const openvdb::MetaMap& m, bool complete
     std::vector<std::string> why;
     auto check = [&](const MetaKey& k, bool required) {
         if (hasKey(m, k)) return;
-        if (m[name(k)])
-            why.push_back(name(k) + " is " + m[name(k)]->typeName() + ", not " + metaTypeName(k.type));
-        else if (required)
-            why.push_back("no " + name(k) + " metadata (" + metaTypeName(k.type) + ")");
+        if (m[name(k)]) why.push_back(name(k) + " is " + m[name(k)]->typeName() + ", not " + metaTypeName(k.type));
+        else if (required) why.push_back("no " + name(k) + " metadata (" + metaTypeName(k.type) + ")");
     };
     for (const MetaKey& k : bakeSchema()) check(k, k.required && (complete || k.shader));
     const int suns = getInt(m, bakekey::sunTermCount, 0);

@@ -33,41 +33,41 @@ struct MetaKey {
 namespace bakekey {
 // What the file is and how to read it.
 inline const MetaKey formatVersion{"lpm:format_version", MetaType::Int, true, true,
-                                       "bake format (2: exact sun terms in sun_transmittance_K)"};
+                                   "bake format (2: exact sun terms in sun_transmittance_K)"};
 inline const MetaKey version{"lpm:version", MetaType::String, true, false, "the lpmbake that wrote it"};
 inline const MetaKey shOrder{"lpm:sh_order", MetaType::Int, true, true, "SH order L of the sh_* grids"};
 inline const MetaKey shCount{"lpm:sh_count", MetaType::Int, true, true, "(L + 1)^2 grids sh_0 .."};
 inline const MetaKey shBasis{"lpm:sh_basis", MetaType::String, true, true, "the SH basis and index order"};
 inline const MetaKey shGrids{"lpm:sh_grids", MetaType::String, true, false, "names and type of the SH grids"};
 inline const MetaKey shNegativeLobes{"lpm:sh_negative_lobes", MetaType::String, true, false,
-                                         "clamp S at zero when shading"};
+                                     "clamp S at zero when shading"};
 inline const MetaKey quantity{"lpm:quantity", MetaType::String, true, false, "what S is"};
 inline const MetaKey usage{"lpm:usage", MetaType::String, true, false, "how a renderer uses S"};
 inline const MetaKey units{"lpm:units", MetaType::String, true, false, "units of S and lengths"};
 inline const MetaKey frame{"lpm:frame", MetaType::String, true, true, "frame of SH directions: world"};
 inline const MetaKey upAxis{"lpm:up_axis", MetaType::String, false, true,
-                                "the scene's up axis, y or z (absent before --up-axis: y)"};
+                            "the scene's up axis, y or z (absent before --up-axis: y)"};
 inline const MetaKey workingColorspace{"lpm:working_colorspace", MetaType::String, true, true,
-                                           "OCIO colour space of every RGB value"};
+                                       "OCIO colour space of every RGB value"};
 // The medium.
 inline const MetaKey densityGrid{"lpm:density_grid", MetaType::String, true, true,
-                                     "name of the density grid (empty: --no-density)"};
+                                 "name of the density grid (empty: --no-density)"};
 inline const MetaKey densityScale{"lpm:density_scale", MetaType::Double, true, true,
-                                      "sigma_t = density * density_scale per world unit"};
+                                  "sigma_t = density * density_scale per world unit"};
 inline const MetaKey albedo{"lpm:albedo", MetaType::Vec3d, true, true, "single-scattering albedo RGB"};
 inline const MetaKey g{"lpm:g", MetaType::Double, true, true, "Henyey-Greenstein asymmetry"};
 inline const MetaKey phaseFunction{"lpm:phase_function", MetaType::String, true, false, "Henyey-Greenstein"};
 inline const MetaKey rendererGrids{"lpm:renderer_grids", MetaType::Bool, false, true,
-                                       "the constant-free grids extinction and source are written"};
+                                   "the constant-free grids extinction and source are written"};
 // Lights.
 inline const MetaKey envFile{"lpm:env_file", MetaType::String, false, false, "environment image"};
 inline const MetaKey envColorspace{"lpm:env_colorspace", MetaType::String, false, false,
-                                       "colour space the environment was read as"};
+                                   "colour space the environment was read as"};
 inline const MetaKey envRotateYDeg{"lpm:env_rotate_y_deg", MetaType::Double, false, true,
-                                       "environment turn about the up axis, degrees"};
+                                   "environment turn about the up axis, degrees"};
 inline const MetaKey envScale{"lpm:env_scale", MetaType::Double, false, true, "environment radiance factor"};
 inline const MetaKey envOrientation{"lpm:env_orientation", MetaType::String, false, false,
-                                        "lat-long convention of the environment"};
+                                    "lat-long convention of the environment"};
 inline const MetaKey sunCount{"lpm:sun_count", MetaType::Int, true, false, "--sun lights"};
 inline const MetaKey suns{"lpm:suns", MetaType::String, false, false, "the --sun lights, in words"};
 inline const MetaKey temperatureGrid{"lpm:temperature_grid", MetaType::String, false, false, ""};
@@ -156,10 +156,10 @@ std::vector<std::string> schemaProblems(const openvdb::MetaMap& m, bool complete
 
 /// What a shader needs, read from the metadata (the sidecar's "shader" block).
 struct ShaderSun {
-    Vec3 toward;      ///< unit, toward the sun
+    Vec3 toward;  ///< unit, toward the sun
     RGB irradiance;
     double angleDeg = 0;
-    std::string grid; ///< its transmittance grid
+    std::string grid;  ///< its transmittance grid
 };
 struct ShaderParams {
     int formatVersion = 0;

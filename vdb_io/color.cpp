@@ -71,8 +71,8 @@ std::string ocioConfigPath() {
         if (std::filesystem::exists(c)) return std::filesystem::weakly_canonical(c).string();
     std::string tried;
     for (const auto& c : candidates) tried += " " + c;
-    throw InputError(kComp, "no OCIO config: $OCIO is not set and the shipped config.ocio was not found (looked at" +
-                                tried + ")");
+    throw InputError(
+        kComp, "no OCIO config: $OCIO is not set and the shipped config.ocio was not found (looked at" + tried + ")");
 }
 
 std::vector<std::string> colorSpaceNames() {

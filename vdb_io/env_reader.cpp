@@ -37,7 +37,8 @@ std::vector<float> readRgbImage(const std::string& path, int& width, int& height
                                     " pixels (32768x16384); downsample it");
     fileColorSpace = spec.get_string_attribute("oiio:ColorSpace");
     if (spec.find_attribute("chromaticities"))
-        warnings.push_back("'" + path + "' has a chromaticities attribute, which lpmbake does not read; say which "
+        warnings.push_back("'" + path +
+                           "' has a chromaticities attribute, which lpmbake does not read; say which "
                            "colour space the pixels are in with --env-colorspace");
     const int nread = std::min(channels, 3);
     std::vector<float> buf(size_t(width) * height * nread);
@@ -47,8 +48,7 @@ std::vector<float> readRgbImage(const std::string& path, int& width, int& height
     if (nread == 3) return buf;
     // Grey (or grey + alpha): replicate the first channel.
     std::vector<float> rgb(size_t(width) * height * 3);
-    for (size_t p = 0; p < size_t(width) * height; ++p)
-        rgb[p * 3] = rgb[p * 3 + 1] = rgb[p * 3 + 2] = buf[p * nread];
+    for (size_t p = 0; p < size_t(width) * height; ++p) rgb[p * 3] = rgb[p * 3 + 1] = rgb[p * 3 + 2] = buf[p * nread];
     if (nread == 2) warnings.push_back("'" + path + "' has 2 channels: using the first as grey");
     return rgb;
 }
@@ -91,8 +91,9 @@ EnvInput readEnvironment(const EnvReadOptions& o) {
     } else {
         out.colorSpace = canonicalColorSpace("lin_rec709");
         out.warnings.push_back("'" + o.path + "' " +
-                               (fileSpace.empty() ? std::string("declares no colour space")
-                                                  : "declares colour space '" + fileSpace + "', unknown to the OCIO config") +
+                               (fileSpace.empty()
+                                    ? std::string("declares no colour space")
+                                    : "declares colour space '" + fileSpace + "', unknown to the OCIO config") +
                                ": reading it as lin_rec709 (set --env-colorspace)");
     }
     out.workingSpace = canonicalColorSpace(o.workingSpace);
@@ -105,7 +106,10 @@ EnvInput readEnvironment(const EnvReadOptions& o) {
         for (int c = 0; c < 3; ++c) {
             float v = rgb[p * 3 + c];
             if (!std::isfinite(v)) v = 0.f;  // a conversion cannot make NaN from finite input, but be safe
-            if (v < 0) { v = 0; ++out.negativeClamped; }
+            if (v < 0) {
+                v = 0;
+                ++out.negativeClamped;
+            }
             pixels[p][c] = v;
         }
     if (out.negativeClamped)

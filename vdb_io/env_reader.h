@@ -13,12 +13,12 @@ namespace lpm {
 
 struct EnvReadOptions {
     std::string path;
-    std::string colorSpace;              ///< empty: the file's oiio:ColorSpace if the config knows it, else lin_rec709
+    std::string colorSpace;  ///< empty: the file's oiio:ColorSpace if the config knows it, else lin_rec709
     std::string workingSpace = "ACEScg";
     double rotateYDeg = 0.0;
     float scale = 1.0f;
-    UpAxis up = UpAxis::Y;               ///< the scene's up axis (core/envmap.h)
-    bool sanitize = false;               ///< NaN/Inf pixels -> 0 instead of an error
+    UpAxis up = UpAxis::Y;  ///< the scene's up axis (core/envmap.h)
+    bool sanitize = false;  ///< NaN/Inf pixels -> 0 instead of an error
     /// Throws SettingError (scale finite and >= 0, rotateYDeg finite).
     void validate() const;
 };
@@ -26,10 +26,10 @@ struct EnvReadOptions {
 struct EnvInput {
     std::unique_ptr<EnvMap> env;
     int width = 0, height = 0, fileChannels = 0;
-    std::string colorSpace;    ///< colour space the pixels were read as (canonical name)
-    std::string workingSpace;  ///< canonical name of the working space
-    std::uint64_t sanitized = 0;       ///< NaN/Inf pixel values set to 0
-    std::uint64_t negativeClamped = 0; ///< negative values (in the file or out of gamut) set to 0
+    std::string colorSpace;             ///< colour space the pixels were read as (canonical name)
+    std::string workingSpace;           ///< canonical name of the working space
+    std::uint64_t sanitized = 0;        ///< NaN/Inf pixel values set to 0
+    std::uint64_t negativeClamped = 0;  ///< negative values (in the file or out of gamut) set to 0
     std::vector<std::string> warnings;
 };
 

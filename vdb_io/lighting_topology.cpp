@@ -54,7 +54,7 @@ LightingTopology lightingTopology(const openvdb::FloatGrid& density, const Dense
     // density's own voxels stay whatever happens.
     std::atomic<std::uint64_t> dropped{0};
     openvdb::tree::LeafManager<openvdb::Vec3STree> leaves(t.grid->tree());
-    leaves.foreach([&](openvdb::Vec3STree::LeafNodeType& leaf, size_t) {
+    leaves.foreach ([&](openvdb::Vec3STree::LeafNodeType& leaf, size_t) {
         auto acc = density.getConstAccessor();  // accessors are not thread-safe: one per leaf
         std::uint64_t off = 0;
         for (auto it = leaf.beginValueOn(); it; ++it) {

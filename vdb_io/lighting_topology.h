@@ -25,9 +25,9 @@ struct DenseBake;
 constexpr int kLightingShell = 1;
 
 struct LightingTopology {
-    openvdb::Vec3SGrid::Ptr grid;  ///< zero-valued Vec3f grid on the density's transform, voxelised
-    std::uint64_t shellVoxels = 0;    ///< active voxels added around the density's
-    std::uint64_t shellDropped = 0;   ///< shell voxels left inactive: the solver has no S there
+    openvdb::Vec3SGrid::Ptr grid;    ///< zero-valued Vec3f grid on the density's transform, voxelised
+    std::uint64_t shellVoxels = 0;   ///< active voxels added around the density's
+    std::uint64_t shellDropped = 0;  ///< shell voxels left inactive: the solver has no S there
 };
 
 /// The density's active voxels (tiles voxelised) plus every voxel of the kLightingShell

@@ -39,8 +39,7 @@ bool isPreviewImagePath(const std::string& path) {
     return e == ".exr" || e == ".png";
 }
 
-void writePreviewImage(AtomicOutput& out, std::vector<float> img, int width, int height,
-                       const std::string& working) {
+void writePreviewImage(AtomicOutput& out, std::vector<float> img, int width, int height, const std::string& working) {
     const bool png = extension(out.finalPath()) == ".png";
     OIIO::ImageSpec spec(width, height, 3, png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::HALF);
     spec.attribute("Software", std::string("lpmbake ") + LPM_VERSION_STRING);
@@ -60,8 +59,7 @@ void writePreviewImage(AtomicOutput& out, std::vector<float> img, int width, int
     if (!writer)
         throw OutputError("render", "cannot create an image writer for '" + out.finalPath() + "': " + OIIO::geterror());
     if (!writer->open(out.tempPath(), spec) || !writer->write_image(OIIO::TypeDesc::FLOAT, img.data()) ||
-        !writer->close())
-    {
+        !writer->close()) {
         const std::string why = out.failureReason();
         throw OutputError("render",
                           "cannot write '" + out.finalPath() + "': " + (why.empty() ? writer->geterror() : why));

@@ -26,8 +26,7 @@ RendererGrids makeRendererGrids(const openvdb::FloatGrid& density, const openvdb
         const openvdb::Vec3s S = scatterAt.getValue(c);
         const openvdb::Vec3s Le = emissionAt ? emissionAt->getValue(c) : openvdb::Vec3s(0.f);
         openvdb::Vec3s src;
-        for (int ch = 0; ch < 3; ++ch)
-            src[ch] = float(sigmaT * (albedo[ch] * S[ch] + (1.0 - albedo[ch]) * Le[ch]));
+        for (int ch = 0; ch < 3; ++ch) src[ch] = float(sigmaT * (albedo[ch] * S[ch] + (1.0 - albedo[ch]) * Le[ch]));
         sourceAt.setValueOn(c, src);
     }
     r.extinction->setName("extinction");

@@ -41,7 +41,8 @@ json shaderBlock(const openvdb::MetaMap& meta) {
     for (int s = 0; s < n; ++s) {
         json t = json::object();
         const size_t prefix = std::string("lpm:sun_term_" + std::to_string(s) + "_").size();
-        for (SunTermField f : {SunTermField::Grid, SunTermField::Toward, SunTermField::Irradiance, SunTermField::AngleDeg}) {
+        for (SunTermField f :
+             {SunTermField::Grid, SunTermField::Toward, SunTermField::Irradiance, SunTermField::AngleDeg}) {
             const MetaKey k = sunTermKey(s, f);
             if (hasKey(meta, k)) t[k.name.substr(prefix)] = metaValue(*meta[k.name]);
         }
@@ -62,7 +63,8 @@ json sidecarJson(const std::string& bakePath, const std::vector<std::string>& gr
     j["shader"] = shaderBlock(meta);
     json all = json::object();
     for (auto it = meta.beginMeta(); it != meta.endMeta(); ++it)
-        if (it->first.rfind("lpm:", 0) == 0 && !metaValue(*it->second).is_null()) all[it->first] = metaValue(*it->second);
+        if (it->first.rfind("lpm:", 0) == 0 && !metaValue(*it->second).is_null())
+            all[it->first] = metaValue(*it->second);
     j["metadata"] = all;
     return j;
 }

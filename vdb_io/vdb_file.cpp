@@ -49,7 +49,8 @@ public:
         std::ifstream statm("/proc/self/statm");
         std::uint64_t pages = 0;
         if (!(statm >> pages) || ::getrlimit(RLIMIT_AS, &old_) != 0) return;
-        const std::uint64_t cap = pages * std::uint64_t(::sysconf(_SC_PAGESIZE)) + (std::uint64_t(256) << 20) + 8 * fileBytes;
+        const std::uint64_t cap =
+            pages * std::uint64_t(::sysconf(_SC_PAGESIZE)) + (std::uint64_t(256) << 20) + 8 * fileBytes;
         if (old_.rlim_cur != RLIM_INFINITY && old_.rlim_cur <= cap) return;
         rlimit lim = old_;
         lim.rlim_cur = cap;
@@ -75,7 +76,7 @@ private:
 class What {
 public:
     What(const std::string& text) : text_(&text) {}  // NOLINT(google-explicit-constructor)
-    What(const char* text) : part_(text) {}  // NOLINT(google-explicit-constructor)
+    What(const char* text) : part_(text) {}          // NOLINT(google-explicit-constructor)
     What(const char* part, const std::string& grid) : part_(part), grid_(&grid) {}
     std::string str() const {
         if (text_) return *text_;
@@ -142,10 +143,8 @@ public:
     }
     void skip(std::uint64_t n, const What& what, std::uint64_t limit = ~std::uint64_t(0)) {
         need(n, what, limit);
-        if (n <= kBuffer)
-            is_.ignore(std::streamsize(n));
-        else
-            is_.seekg(std::streamoff(n), std::ios::cur);
+        if (n <= kBuffer) is_.ignore(std::streamsize(n));
+        else is_.seekg(std::streamoff(n), std::ios::cur);
         pos_ += n;
     }
     /// OpenVDB's string: a 32-bit length, then the bytes.
@@ -235,8 +234,8 @@ struct ValueLayout {
 
 bool valueLayout(const std::string& type, ValueLayout& v) {
     static const std::map<std::string, ValueLayout> known = {
-        {"Tree_float_5_4_3", {4, 2}},  {"Tree_double_5_4_3", {8, 2}}, {"Tree_vec3s_5_4_3", {12, 6}},
-        {"Tree_vec3d_5_4_3", {24, 6}}, {"Tree_int32_5_4_3", {4, 4}},  {"Tree_int64_5_4_3", {8, 8}},
+        {"Tree_float_5_4_3", {4, 2}},   {"Tree_double_5_4_3", {8, 2}}, {"Tree_vec3s_5_4_3", {12, 6}},
+        {"Tree_vec3d_5_4_3", {24, 6}},  {"Tree_int32_5_4_3", {4, 4}},  {"Tree_int64_5_4_3", {8, 8}},
         {"Tree_vec3i_5_4_3", {12, 12}},
     };
     const auto it = known.find(type);
@@ -328,7 +327,8 @@ private:
         if (meta == NO_MASK_AND_ONE_INACTIVE_VAL || meta == MASK_AND_ONE_INACTIVE_VAL ||
             meta == MASK_AND_TWO_INACTIVE_VALS)
             r_.skip(v_.bytes * (meta == MASK_AND_TWO_INACTIVE_VALS ? 2 : 1), what("an inactive value"), limit_);
-        if (meta == MASK_AND_NO_INACTIVE_VALS || meta == MASK_AND_ONE_INACTIVE_VAL || meta == MASK_AND_TWO_INACTIVE_VALS)
+        if (meta == MASK_AND_NO_INACTIVE_VALS || meta == MASK_AND_ONE_INACTIVE_VAL ||
+            meta == MASK_AND_TWO_INACTIVE_VALS)
             r_.skip(maskBytes, what("a selection mask"), limit_);
         std::uint64_t n = count;
         if ((compression_ & COMPRESS_ACTIVE_MASK) && meta != NO_MASK_AND_ALL_VALS) n = active;
@@ -360,8 +360,9 @@ private:
         r_.need(std::uint64_t(n), what("a compressed chunk"), limit_);
         if (compression_ & COMPRESS_BLOSC) {
             // Blosc trusts the compressed size in its own header: it must be the chunk's.
-            if (n < 16) r_.fail("it is corrupt (grid '" + grid_ + "' has a " + std::to_string(n) +
-                                "-byte Blosc chunk at byte " + std::to_string(at) + ")");
+            if (n < 16)
+                r_.fail("it is corrupt (grid '" + grid_ + "' has a " + std::to_string(n) +
+                        "-byte Blosc chunk at byte " + std::to_string(at) + ")");
             std::uint32_t header[4];
             r_.read(header, 16, what("a compressed chunk"), limit_);
             if (header[3] != std::uint64_t(n))
@@ -392,7 +393,9 @@ VdbFile::VdbFile(const std::string& path) : path_(path), file_(path) {
     if (!ec) {
         Reader r(path, size_);
         if (!r.ok()) r.fail(std::string("it cannot be opened (") + std::strerror(errno) + ")");
-        if (size_ < 8) r.fail(size_ == 0 ? "the file is empty" : "it is not an OpenVDB file (" + std::to_string(size_) + " bytes)");
+        if (size_ < 8)
+            r.fail(size_ == 0 ? "the file is empty"
+                              : "it is not an OpenVDB file (" + std::to_string(size_) + " bytes)");
         if (r.get<std::int64_t>("the magic number") != std::int64_t(openvdb::OPENVDB_MAGIC))
             r.fail("it is not an OpenVDB file (no VDB magic number)");
         version_ = r.get<std::uint32_t>("the format version");
@@ -407,8 +410,9 @@ VdbFile::VdbFile(const std::string& path) : path_(path), file_(path) {
             const auto hasOffsets = r.get<char>("the header");
             r.skip(36, "the header");
             if (!hasOffsets)
-                r.fail("it is a streamed VDB (written without grid offsets), which lpmbake does not read; "
-                       "re-save it as a regular .vdb file");
+                r.fail(
+                    "it is a streamed VDB (written without grid offsets), which lpmbake does not read; "
+                    "re-save it as a regular .vdb file");
             {
                 checked_ = true;
                 r.metaMap("the file metadata", size_);
@@ -421,7 +425,8 @@ VdbFile::VdbFile(const std::string& path) : path_(path), file_(path) {
                     g.type = r.string("the type of grid '" + name + "'");
                     const std::string halfSuffix = "_HalfFloat";
                     if (g.type.size() > halfSuffix.size() &&
-                        g.type.compare(g.type.size() - halfSuffix.size(), halfSuffix.size(), halfSuffix) == 0) {
+                        g.type.compare(g.type.size() - halfSuffix.size(), halfSuffix.size(), halfSuffix) == 0)
+                    {
                         g.half = true;
                         g.type.resize(g.type.size() - halfSuffix.size());
                     }
@@ -447,8 +452,9 @@ VdbFile::VdbFile(const std::string& path) : path_(path), file_(path) {
         // memory-mapped while the output is written.
         file_.open(false);
     } catch (const std::bad_alloc&) {
-        throw InputError(kComp, "cannot read '" + path + "' as an OpenVDB file: it is corrupt (a header field asks "
-                                "for far more memory than the file could hold)");
+        throw InputError(kComp, "cannot read '" + path +
+                                    "' as an OpenVDB file: it is corrupt (a header field asks "
+                                    "for far more memory than the file could hold)");
     } catch (const std::exception& e) {
         throw InputError(kComp, "cannot read '" + path + "' as an OpenVDB file: " + e.what());
     }

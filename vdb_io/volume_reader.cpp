@@ -1,7 +1,6 @@
 // OpenVDB -> core Medium. See volume_reader.h for the conventions.
 #include "vdb_io/volume_reader.h"
 
-
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -29,9 +28,7 @@ namespace {
 
 const char* kComp = "input";
 
-std::string gridClassName(const openvdb::GridBase& g) {
-    return openvdb::GridBase::gridClassToString(g.getGridClass());
-}
+std::string gridClassName(const openvdb::GridBase& g) { return openvdb::GridBase::gridClassToString(g.getGridClass()); }
 
 bool isBad(float v) { return !std::isfinite(v) || v < 0.f; }
 
@@ -44,7 +41,10 @@ std::uint64_t scanBadValues(openvdb::FloatGrid& grid, bool fix, float& example) 
         if (!isBad(v)) continue;
         const std::uint64_t n = it.isVoxelValue() ? 1 : it.getBoundingBox().volume();
         bad += n;
-        if (!haveExample) { example = v; haveExample = true; }
+        if (!haveExample) {
+            example = v;
+            haveExample = true;
+        }
         if (fix) it.setValue(0.f);
     }
     return bad;
@@ -58,15 +58,15 @@ std::string listGrids(const std::vector<std::string>& grids) {
 }
 
 /// Reads the `index`-th grid called `name` (OpenVDB addresses duplicates as "name[N]").
-openvdb::GridBase::Ptr readNamed(VdbFile& file, const std::string& path, const std::string& name,
-                                 int index, const openvdb::GridPtrVec& metas, const std::vector<std::string>& list,
+openvdb::GridBase::Ptr readNamed(VdbFile& file, const std::string& path, const std::string& name, int index,
+                                 const openvdb::GridPtrVec& metas, const std::vector<std::string>& list,
                                  std::vector<std::string>& warnings, const char* what) {
     int count = 0;
     for (const auto& m : metas)
         if (m->getName() == name) ++count;
     if (count == 0)
-        throw InputError(kComp, "'" + path + "' has no grid named '" + name + "' (" + what +
-                                    "); grids present: " + listGrids(list));
+        throw InputError(
+            kComp, "'" + path + "' has no grid named '" + name + "' (" + what + "); grids present: " + listGrids(list));
     if (index < 0) {
         if (count > 1)
             warnings.push_back("'" + path + "' has " + std::to_string(count) + " grids named '" + name +
@@ -94,12 +94,15 @@ void sampleEmission(const VolumeReadOptions& o, VolumeInput& out, PosFn pos, int
         using GridT = std::decay_t<decltype(egrid)>;
         parallelForChunks(size_t(m.nz), 1, [&](size_t z0, size_t z1) {
             auto acc = egrid.getConstAccessor();
-            openvdb::tools::GridSampler<typename GridT::ConstAccessor, openvdb::tools::BoxSampler> s(
-                acc, egrid.transform());
+            openvdb::tools::GridSampler<typename GridT::ConstAccessor, openvdb::tools::BoxSampler> s(acc,
+                                                                                                     egrid.transform());
             auto sample = [&](const openvdb::Vec3d& w, bool& bad) {
                 RGB e = toRgb(s.wsSample(w)) * es;
                 for (int c = 0; c < 3; ++c)
-                    if (!std::isfinite(e[c]) || e[c] < 0) { bad = true; e[c] = 0; }
+                    if (!std::isfinite(e[c]) || e[c] < 0) {
+                        bad = true;
+                        e[c] = 0;
+                    }
                 return e;
             };
             for (size_t z = z0; z < z1; ++z)
@@ -122,8 +125,7 @@ void sampleEmission(const VolumeReadOptions& o, VolumeInput& out, PosFn pos, int
                     }
         });
     };
-    if (auto f = openvdb::gridPtrCast<openvdb::FloatGrid>(out.emission))
-        sampleInto(*f, [](float v) { return RGB(v); });
+    if (auto f = openvdb::gridPtrCast<openvdb::FloatGrid>(out.emission)) sampleInto(*f, [](float v) { return RGB(v); });
     else if (auto v = openvdb::gridPtrCast<openvdb::Vec3SGrid>(out.emission))
         sampleInto(*v, [](const openvdb::Vec3s& c) { return RGB(c.x(), c.y(), c.z()); });
     const std::string ew = "emission grid '" + o.emissionGrid + "'";
@@ -140,9 +142,7 @@ void sampleEmission(const VolumeReadOptions& o, VolumeInput& out, PosFn pos, int
 /// The shell voxel bmin - shell sits at block coordinate (0.5 - shell) S + P, which must be
 /// >= 0.5 (the first centre): P >= (shell - 0.5) S + 0.5; the high side gives the same bound.
 /// 1 for S <= 1, 2 for S = 2, 5 for S = 8.
-int solvePad(int pad, double S) {
-    return std::max(pad, int(std::ceil((kLightingShell - 0.5) * S + 0.5 - 1e-9)));
-}
+int solvePad(int pad, double S) { return std::max(pad, int(std::ceil((kLightingShell - 0.5) * S + 0.5 - 1e-9))); }
 
 /// An input voxel (index along one axis) and its weight in a solve voxel.
 struct Tap {
@@ -176,7 +176,7 @@ void shearedBlockExtent(const openvdb::math::Transform& xf, const openvdb::Vec3d
         }
     };
     double vlo[3], vhi[3], slo[3], shi[3];
-    extent(0.5, vlo, vhi);                   // the voxels' extents
+    extent(0.5, vlo, vhi);                     // the voxels' extents
     extent(double(kLightingShell), slo, shi);  // the shell voxels' centres
     for (int i = 0; i < 3; ++i) {
         const int padLo = std::max(pad, int(std::ceil((vlo[i] - slo[i]) / h + 0.5 - 1e-9)));
@@ -219,10 +219,10 @@ void resampleSheared(const openvdb::FloatGrid& grid, const openvdb::CoordBBox& b
     shearedBlockExtent(xf, e, bbox, h, pad, lo, dims);
     const double count = dims[0] * dims[1] * dims[2];
     if (count > double(o.maxDenseVoxels))
-        throw InputError(kComp, where + ": its sheared transform is resampled to " + std::to_string(int(dims[0])) + "x" +
-                                        std::to_string(int(dims[1])) + "x" + std::to_string(int(dims[2])) +
-                                        " voxels, above the limit of " + std::to_string(o.maxDenseVoxels) +
-                                        " (--max-voxels); use a smaller --solve-scale");
+        throw InputError(kComp, where + ": its sheared transform is resampled to " + std::to_string(int(dims[0])) +
+                                    "x" + std::to_string(int(dims[1])) + "x" + std::to_string(int(dims[2])) +
+                                    " voxels, above the limit of " + std::to_string(o.maxDenseVoxels) +
+                                    " (--max-voxels); use a smaller --solve-scale");
     m.allocate(int(dims[0]), int(dims[1]), int(dims[2]));
     m.voxelSize = {h, h, h};
     for (int r = 0; r < 3; ++r)
@@ -259,12 +259,13 @@ void resampleSheared(const openvdb::FloatGrid& grid, const openvdb::CoordBBox& b
         out.solveGrid.t[r] = e[r].dot(w0 - origin) / h;
     }
     if (out.emission)
-        sampleEmission(o, out, [&](int x, int y, int z, int jx, int jy, int jz) {
-            return worldAt(x, y, z, 0.5 + jx, 0.5 + jy, 0.5 + jz);
-        }, 1);
+        sampleEmission(
+            o, out,
+            [&](int x, int y, int z, int jx, int jy, int jz) { return worldAt(x, y, z, 0.5 + jx, 0.5 + jy, 0.5 + jz); },
+            1);
     out.warnings.push_back(where + " has a sheared transform: resampled to " + std::to_string(m.nx) + "x" +
-                           std::to_string(m.ny) + "x" + std::to_string(m.nz) + " cubic voxels of " +
-                           std::to_string(h) + " in an orthonormal frame");
+                           std::to_string(m.ny) + "x" + std::to_string(m.nz) + " cubic voxels of " + std::to_string(h) +
+                           " in an orthonormal frame");
 }
 
 void resampleToSolveGrid(const openvdb::FloatGrid& grid, const openvdb::CoordBBox& bbox, int padIn,
@@ -356,11 +357,14 @@ void resampleToSolveGrid(const openvdb::FloatGrid& grid, const openvdb::CoordBBo
         // S < 1: the mean of ceil(1/S)^3 stratified sub-samples (the emission grid may have
         // its own transform, so there is no exact overlap to use); S > 1: the centre sample.
         const int k = S < 1 ? int(std::ceil(1.0 / S - 1e-9)) : 1;
-        sampleEmission(o, out, [&](int x, int y, int z, int jx, int jy, int jz) {
-            const openvdb::Vec3d p(c0[0] + (x + (jx + 0.5) / k) / S, c0[1] + (y + (jy + 0.5) / k) / S,
-                                   c0[2] + (z + (jz + 0.5) / k) / S);
-            return xf.indexToWorld(p);
-        }, k);
+        sampleEmission(
+            o, out,
+            [&](int x, int y, int z, int jx, int jy, int jz) {
+                const openvdb::Vec3d p(c0[0] + (x + (jx + 0.5) / k) / S, c0[1] + (y + (jy + 0.5) / k) / S,
+                                       c0[2] + (z + (jz + 0.5) / k) / S);
+                return xf.indexToWorld(p);
+            },
+            k);
     }
 }
 
@@ -368,7 +372,8 @@ void resampleToSolveGrid(const openvdb::FloatGrid& grid, const openvdb::CoordBBo
 /// tx + tnx*(ty + tny*tz)): set where the tile holds an active voxel or a voxel of the
 /// lighting shell around one, so the solver computes S wherever the bake writes it. The
 /// block's pad is at least kLightingShell, so every shell voxel is inside it.
-std::vector<std::uint8_t> tilesToStore(const openvdb::FloatGrid& grid, const openvdb::Coord& lo, const openvdb::Coord& dim) {
+std::vector<std::uint8_t> tilesToStore(const openvdb::FloatGrid& grid, const openvdb::Coord& lo,
+                                       const openvdb::Coord& dim) {
     Medium probe;
     probe.nx = dim.x();
     probe.ny = dim.y();
@@ -487,14 +492,16 @@ VolumeInput readVolume(const VolumeReadOptions& o) {
     const std::string where = "grid '" + o.gridName + "' in '" + o.path + "'";
     openvdb::FloatGrid::Ptr grid = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
     if (!grid)
-        throw InputError(kComp, where + " holds " + base->valueType() +
-                                    " values; lpmbake needs a scalar float grid (choose one with --grid; grids present: " +
-                                    listGrids(out.gridsInFile) + ")");
+        throw InputError(kComp,
+                         where + " holds " + base->valueType() +
+                             " values; lpmbake needs a scalar float grid (choose one with --grid; grids present: " +
+                             listGrids(out.gridsInFile) + ")");
     if (grid->getGridClass() == openvdb::GRID_LEVEL_SET) {
         if (!o.convertLevelSet)
-            throw InputError(kComp, where + " is a level set (signed distance), not a density; convert it to a fog "
-                                            "volume with openvdb::tools::sdfToFogVolume (or pass --convert-level-set "
-                                            "to do so here)");
+            throw InputError(kComp, where +
+                                        " is a level set (signed distance), not a density; convert it to a fog "
+                                        "volume with openvdb::tools::sdfToFogVolume (or pass --convert-level-set "
+                                        "to do so here)");
         // sdfToFogVolume: interior 0..1 ramp over the narrow band, 1 deep inside, inactive outside.
         openvdb::tools::sdfToFogVolume(*grid);
         out.warnings.push_back(where + " is a level set: converted to a fog volume (tools::sdfToFogVolume)");
@@ -503,15 +510,13 @@ VolumeInput readVolume(const VolumeReadOptions& o) {
     }
 
     if (!o.emissionGrid.empty()) {
-        out.emission =
-            readNamed(file, o.path, o.emissionGrid, -1, *metas, out.gridsInFile, out.warnings, "emission");
+        out.emission = readNamed(file, o.path, o.emissionGrid, -1, *metas, out.gridsInFile, out.warnings, "emission");
         if (!out.emission->isType<openvdb::FloatGrid>() && !out.emission->isType<openvdb::Vec3SGrid>())
             throw InputError(kComp, "emission grid '" + o.emissionGrid + "' in '" + o.path + "' holds " +
                                         out.emission->valueType() + " values; expected float or vec3s");
     }
     if (!o.temperatureGrid.empty()) {
-        if (out.emission)
-            throw InputError(kComp, "use either --emission-grid or --temperature-grid, not both");
+        if (out.emission) throw InputError(kComp, "use either --emission-grid or --temperature-grid, not both");
         auto tb = readNamed(file, o.path, o.temperatureGrid, -1, *metas, out.gridsInFile, out.warnings, "temperature");
         auto t = openvdb::gridPtrCast<openvdb::FloatGrid>(tb);
         if (!t)
@@ -531,8 +536,9 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
 
     o.validate();
     if (!grid->transform().isLinear())
-        throw InputError(kComp, where + " has a non-linear (frustum) transform; resample it to a linear transform "
-                                        "first (e.g. openvdb::tools::resampleToMatch)");
+        throw InputError(kComp, where +
+                                    " has a non-linear (frustum) transform; resample it to a linear transform "
+                                    "first (e.g. openvdb::tools::resampleToMatch)");
     if (grid->background() != 0.f)
         out.warnings.push_back(where + " has background " + std::to_string(grid->background()) +
                                "; inactive voxels are treated as empty");
@@ -563,7 +569,8 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
         m.voxelSize[a] = axis[a].length();
         if (!(m.voxelSize[a] > 0) || !std::isfinite(m.voxelSize[a]))
             throw InputError(kComp, where + " has a degenerate transform (voxel size " +
-                                            std::to_string(m.voxelSize[a]) + " along index axis " + std::to_string(a) + ")");
+                                        std::to_string(m.voxelSize[a]) + " along index axis " + std::to_string(a) +
+                                        ")");
         axis[a] /= m.voxelSize[a];
     }
     bool sheared = false;
@@ -599,8 +606,8 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
     // The tile mask itself is one byte per 8^3 tile of the bounding box: refuse absurd boxes.
     if (count / Medium::kTileVoxels > (std::uint64_t(1) << 32))
         throw InputError(kComp, where + ": the active bounding box " + std::to_string(dim.x()) + "x" +
-                                        std::to_string(dim.y()) + "x" + std::to_string(dim.z()) +
-                                        " is too large to tile (more than 2^32 tiles of 8^3)");
+                                    std::to_string(dim.y()) + "x" + std::to_string(dim.z()) +
+                                    " is too large to tile (more than 2^32 tiles of 8^3)");
     // Dense 8^3 tiles over the block; only the tiles tilesToStore() marks are allocated, so
     // memory follows the active region rather than its bounding box.
     {
@@ -609,12 +616,11 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
         for (std::uint8_t a : active) tiles += a;
         const std::uint64_t stored = tiles * Medium::kTileVoxels;
         if (stored > o.maxDenseVoxels)
-            throw InputError(kComp, where + ": the active region needs " + std::to_string(tiles) +
-                                            " tiles of 8^3 = " + std::to_string(stored) + " voxels (bounding box " +
-                                            std::to_string(dim.x()) + "x" + std::to_string(dim.y()) + "x" +
-                                            std::to_string(dim.z()) + "), above the limit of " +
-                                            std::to_string(o.maxDenseVoxels) +
-                                            " (--max-voxels; or solve on a coarser grid with --solve-scale below 1)");
+            throw InputError(kComp, where + ": the active region needs " + std::to_string(tiles) + " tiles of 8^3 = " +
+                                        std::to_string(stored) + " voxels (bounding box " + std::to_string(dim.x()) +
+                                        "x" + std::to_string(dim.y()) + "x" + std::to_string(dim.z()) +
+                                        "), above the limit of " + std::to_string(o.maxDenseVoxels) +
+                                        " (--max-voxels; or solve on a coarser grid with --solve-scale below 1)");
         m.allocate(dim.x(), dim.y(), dim.z(), &active);
     }
     out.blockMin = lo;
@@ -630,7 +636,7 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
     };
     // Leaves in parallel (each voxel written once: no races), then active tiles.
     openvdb::tree::LeafManager<const openvdb::FloatTree> leaves(grid->tree());
-    leaves.foreach([&](const openvdb::FloatTree::LeafNodeType& leaf, size_t) {
+    leaves.foreach ([&](const openvdb::FloatTree::LeafNodeType& leaf, size_t) {
         for (auto it = leaf.cbeginValueOn(); it; ++it) put(it.getCoord(), *it);
     });
     for (auto it = grid->tree().cbeginValueOn(); it; ++it) {
@@ -640,9 +646,12 @@ void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, 
     }
 
     if (out.emission)
-        sampleEmission(o, out, [&](int x, int y, int z, int, int, int) {
-            return xf.indexToWorld(openvdb::Vec3d(lo.x() + x, lo.y() + y, lo.z() + z));
-        }, 1);
+        sampleEmission(
+            o, out,
+            [&](int x, int y, int z, int, int, int) {
+                return xf.indexToWorld(openvdb::Vec3d(lo.x() + x, lo.y() + y, lo.z() + z));
+            },
+            1);
     out.density = grid;
 }
 

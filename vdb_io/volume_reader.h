@@ -41,20 +41,20 @@ namespace lpm {
 struct VolumeReadOptions {
     std::string path;
     std::string gridName = "density";
-    int gridIndex = -1;              ///< among grids named gridName; -1 = not given (0, warn if several)
+    int gridIndex = -1;  ///< among grids named gridName; -1 = not given (0, warn if several)
     double densityScale = 1.0;
-    bool sanitize = false;           ///< clamp NaN/Inf/negative values to 0 instead of failing
-    bool convertLevelSet = false;    ///< convert a level set with tools::sdfToFogVolume
-    std::string emissionGrid;        ///< empty = none
+    bool sanitize = false;         ///< clamp NaN/Inf/negative values to 0 instead of failing
+    bool convertLevelSet = false;  ///< convert a level set with tools::sdfToFogVolume
+    std::string emissionGrid;      ///< empty = none
     double emissionScale = 1.0;
-    std::string temperatureGrid;     ///< empty = none; black-body emission from Kelvin
-    double temperatureScale = 1.0;   ///< Kelvin = value * scale + offset
+    std::string temperatureGrid;    ///< empty = none; black-body emission from Kelvin
+    double temperatureScale = 1.0;  ///< Kelvin = value * scale + offset
     double temperatureOffset = 0.0;
-    double temperatureIntensity = 1.0;  ///< L_e = intensity * blackbody(K), 6500 K -> luminance 1
+    double temperatureIntensity = 1.0;    ///< L_e = intensity * blackbody(K), 6500 K -> luminance 1
     std::string workingSpace = "ACEScg";  ///< colour space of the black-body emission
-    int pad = 1;                     ///< empty voxels added around the active bounding box (>= kLightingShell used)
+    int pad = 1;  ///< empty voxels added around the active bounding box (>= kLightingShell used)
     std::uint64_t maxDenseVoxels = 1ull << 30;  ///< refuse larger dense blocks (memory guard)
-    double solveScale = 1.0;         ///< solve voxels per input voxel along each axis (--solve-scale)
+    double solveScale = 1.0;                    ///< solve voxels per input voxel along each axis (--solve-scale)
     /// Range rules: throws SettingError naming the field (densityScale, emissionScale,
     /// temperature*, solveScale in [kMinSolveScale, kMaxSolveScale], maxDenseVoxels).
     void validate() const;
@@ -86,7 +86,7 @@ struct VolumeInput {
     SolveGrid solveGrid;              ///< the block's placement in index space (any scale)
     bool empty = false;               ///< no active voxels: no medium to solve
     std::uint64_t activeVoxels = 0;
-    std::uint64_t sanitized = 0;      ///< values clamped because of --sanitize
+    std::uint64_t sanitized = 0;           ///< values clamped because of --sanitize
     std::vector<std::string> gridsInFile;  ///< "name (type)" of every grid, for messages
     std::vector<std::string> warnings;
 };

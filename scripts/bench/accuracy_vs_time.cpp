@@ -33,7 +33,8 @@ int main(int argc, char** argv) {
         settings.push_back({name, s});
     };
     add("defaults (n=4, r=2, b=auto, tol=1e-3)", [](LpmSettings&) {});
-    for (int n : {2, 3, 6}) add("directions/face n=" + std::to_string(n), [n](LpmSettings& s) { s.directionsPerFace = n; });
+    for (int n : {2, 3, 6})
+        add("directions/face n=" + std::to_string(n), [n](LpmSettings& s) { s.directionsPerFace = n; });
     for (int r : {1, 4}) add("rays/voxel r=" + std::to_string(r), [r](LpmSettings& s) { s.raysPerVoxel = r; });
     for (int b : {1, 4}) add("bins/face b=" + std::to_string(b), [b](LpmSettings& s) { s.binsPerFace = b; });
     add("no GMRES (plain source iteration)", [](LpmSettings& s) { s.krylov = false; });
@@ -64,11 +65,15 @@ int main(int argc, char** argv) {
         Scene& s = scenes.back();
         s.lights.env = &s.sky;
         const int samples = (c.g >= 0.7 ? 40000 : 12000) * (quick ? 1 : 4);
-        mcSeconds += secondsOf([&] { refs.push_back(mcVoxelSH(s.medium, s.lights, sampleVoxels(s.medium, 48), samples, 2)); });
+        mcSeconds +=
+            secondsOf([&] { refs.push_back(mcVoxelSH(s.medium, s.lights, sampleVoxels(s.medium, 48), samples, 2)); });
     }
     for (Scene& s : scenes) s.lights.env = &s.sky;  // vector may have moved
-    std::printf("MC reference: %zu cases x 48 voxels, %.1f s in all (%d threads)\n\n", cases.size(), mcSeconds, maxThreads());
-    std::printf("| setting | band-0 rel. RMS (mean / worst case) | MC noise | bands 1-2 rel. RMS (mean) | passes (sum) | LPM seconds (sum) |\n");
+    std::printf("MC reference: %zu cases x 48 voxels, %.1f s in all (%d threads)\n\n", cases.size(), mcSeconds,
+                maxThreads());
+    std::printf(
+        "| setting | band-0 rel. RMS (mean / worst case) | MC noise | bands 1-2 rel. RMS (mean) | passes (sum) | LPM "
+        "seconds (sum) |\n");
     std::printf("|---|---|---|---|---|---|\n");
     for (const Setting& st : settings) {
         double sum0 = 0, worst0 = 0, noise = 0, sum12 = 0, secs = 0;

@@ -52,14 +52,15 @@ int main(int argc, char** argv) {
         sc.lights.env = &sc.sky;
         if (skyOnly) sc.lights.suns.clear();
         std::vector<McVoxelEstimate> mc;
-        const double tMc = secondsOf([&] { mc = mcVoxelSH(sc.medium, sc.lights, sampleVoxels(sc.medium, 48), samples, 2); });
+        const double tMc =
+            secondsOf([&] { mc = mcVoxelSH(sc.medium, sc.lights, sampleVoxels(sc.medium, 48), samples, 2); });
         for (const Setting& st : settings) {
             if (st.forwardOnly && g <= 0) continue;
             LpmResult r;
             const double t = secondsOf([&] { r = solveLpm(sc.medium, sc.lights, st.s); });
             const Comparison e = compare(r, mc);
-            std::printf("| %g | %g | %.1f | %.4f | %s | %.4f | %+.4f | %.4f | %zu | %.2f |\n", g, albedo, tMc, e.band0Noise,
-                        st.name.c_str(), e.band0Rms, e.band0Bias, e.band12Rms, r.passes.size(), t);
+            std::printf("| %g | %g | %.1f | %.4f | %s | %.4f | %+.4f | %.4f | %zu | %.2f |\n", g, albedo, tMc,
+                        e.band0Noise, st.name.c_str(), e.band0Rms, e.band0Bias, e.band12Rms, r.passes.size(), t);
             std::fflush(stdout);
         }
     }

@@ -141,8 +141,8 @@ int main(int argc, char** argv) {
     }
     grid->pruneGrid();
     const openvdb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
-    std::printf("%s: %llu active voxels in a %dx%dx%d box\n", out.c_str(),
-                (unsigned long long)grid->activeVoxelCount(), box.dim().x(), box.dim().y(), box.dim().z());
+    std::printf("%s: %llu active voxels in a %dx%dx%d box\n", out.c_str(), (unsigned long long)grid->activeVoxelCount(),
+                box.dim().x(), box.dim().y(), box.dim().z());
     openvdb::io::File file(out);
     file.setCompression(openvdb::io::COMPRESS_BLOSC);
     file.write({grid});

@@ -21,7 +21,9 @@ static double peakRssMiB() {
 int main(int argc, char** argv) {
     const int maxN = argc > 1 ? std::atoi(argv[1]) : 64;
     const int all = maxThreads();
-    std::printf("| voxels | g | threads | passes | seconds | s/pass | segments/s | peak RSS MiB |\n|---|---|---|---|---|---|---|---|\n");
+    std::printf(
+        "| voxels | g | threads | passes | seconds | s/pass | segments/s | peak RSS MiB "
+        "|\n|---|---|---|---|---|---|---|---|\n");
     for (int n = 16; n <= maxN; n *= 2)
         for (double g : {0.0, 0.6})
             for (int threads : {1, all}) {

@@ -66,7 +66,9 @@ int main(int argc, char** argv) {
             add("step subdivide 2", [](LpmSettings& x) { x.subdivide = 2; });
         }
     }
-    std::printf("| grid | albedo | voxel tau (max) | MC s | MC noise | setting | band-0 RMS | bias | bands 1-2 | passes | LPM s |\n");
+    std::printf(
+        "| grid | albedo | voxel tau (max) | MC s | MC noise | setting | band-0 RMS | bias | bands 1-2 | passes | LPM "
+        "s |\n");
     std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (int n : sizes)
         for (double a : albedos) {
@@ -76,14 +78,16 @@ int main(int argc, char** argv) {
             double maxTau = 0;
             for (float s : sc.medium.sigmaT) maxTau = std::max(maxTau, double(s) * sc.medium.voxelSize.x);
             std::vector<McVoxelEstimate> mc;
-            const double tMc = secondsOf([&] { mc = mcVoxelSH(sc.medium, sc.lights, sampleVoxels(sc.medium, 48), samples, 2); });
+            const double tMc =
+                secondsOf([&] { mc = mcVoxelSH(sc.medium, sc.lights, sampleVoxels(sc.medium, 48), samples, 2); });
             for (const Setting& st : settings) {
                 if (st.s.subdivide > 1 && n > 16) continue;  // minutes per solve
                 LpmResult r;
                 const double t = secondsOf([&] { r = solveLpm(sc.medium, sc.lights, st.s); });
                 const Comparison e = compare(r, mc);
-                std::printf("| %d^3 | %g | %.2f | %.1f | %.4f | %s | %.4f | %+.4f | %.4f | %zu | %.2f |\n", n, a, maxTau, tMc,
-                            e.band0Noise, st.name.c_str(), e.band0Rms, e.band0Bias, e.band12Rms, r.passes.size(), t);
+                std::printf("| %d^3 | %g | %.2f | %.1f | %.4f | %s | %.4f | %+.4f | %.4f | %zu | %.2f |\n", n, a,
+                            maxTau, tMc, e.band0Noise, st.name.c_str(), e.band0Rms, e.band0Bias, e.band12Rms,
+                            r.passes.size(), t);
                 std::fflush(stdout);
             }
         }

@@ -63,8 +63,9 @@ LpmSettings settingsNamed(const std::string& name) {
 
 int main(int argc, char** argv) {
     if (argc < 2) {
-        std::fprintf(stderr, "usage: lpm_bench_volume IN.vdb [--env SKY] [--sun X,Y,Z] [--albedo A] [--g G] "
-                             "[--density-scale S] [--samples N] [--voxels K] [--threads T] [--settings a,b]\n");
+        std::fprintf(stderr,
+                     "usage: lpm_bench_volume IN.vdb [--env SKY] [--sun X,Y,Z] [--albedo A] [--g G] "
+                     "[--density-scale S] [--samples N] [--voxels K] [--threads T] [--settings a,b]\n");
         return 2;
     }
     std::string env, sun, list = "full,default";
@@ -105,9 +106,8 @@ int main(int argc, char** argv) {
         if (std::sscanf(sun.c_str(), "%lf,%lf,%lf", &d.x, &d.y, &d.z) != 3) return 2;
         lights.suns.push_back({normalize(d), RGB(3.0f), 0.53});
     }
-    std::printf("%s: %llu active voxels, block %dx%dx%d, %zu stored voxels; albedo %g, g %g, %d threads\n\n",
-                argv[1], (unsigned long long)vol.activeVoxels, m.nx, m.ny, m.nz, m.voxelCount(), albedo, g,
-                maxThreads());
+    std::printf("%s: %llu active voxels, block %dx%dx%d, %zu stored voxels; albedo %g, g %g, %d threads\n\n", argv[1],
+                (unsigned long long)vol.activeVoxels, m.nx, m.ny, m.nz, m.voxelCount(), albedo, g, maxThreads());
     std::vector<McVoxelEstimate> mc;
     const double tMc = secondsOf([&] { mc = mcVoxelSH(m, lights, sampleVoxels(m, voxels), samples, 2); });
     std::printf("MC reference: %d voxels x %d paths, %.1f s\n\n", voxels, samples, tMc);

@@ -25,8 +25,13 @@ namespace {
 const std::vector<std::string> kCheap = {"--directions-per-face", "2", "--tolerance", "1e-2", "--rays-per-voxel", "1"};
 
 std::vector<std::string> torusArgs(const std::string& out) {
-    std::vector<std::string> a = {dataPath("vdb/torus01.vdb"), "--grid", "voxel_fog_density", "--env",
-                                  dataPath("env/rooftop_small.hdr"), "-o", out};
+    std::vector<std::string> a = {dataPath("vdb/torus01.vdb"),
+                                  "--grid",
+                                  "voxel_fog_density",
+                                  "--env",
+                                  dataPath("env/rooftop_small.hdr"),
+                                  "-o",
+                                  out};
     a.insert(a.end(), kCheap.begin(), kCheap.end());
     return a;
 }
@@ -69,14 +74,15 @@ TEST(Cli, UsageErrorsExit1) {
     expectOneLineError(runLpmbake({"--bogus"}, dir), 1, "usage", {"--bogus"});
     expectOneLineError(runLpmbake({"-o", out, "--sun", "0,1,0"}, dir), 1, "usage", {"no input"});
     expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out}, dir), 1, "usage", {"no light"});
-    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1", "--sun-irradiance", "1"}, dir),
-                       1, "usage", {"--sun", "X,Y,Z"});
+    expectOneLineError(
+        runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1", "--sun-irradiance", "1"}, dir), 1, "usage",
+        {"--sun", "X,Y,Z"});
     expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--sun", "1,0,0",
                                    "--sun-irradiance", "1", "--sun-irradiance", "1", "--sun-irradiance", "1"},
                                   dir),
                        1, "usage", {"--sun-irradiance", "3 times", "2 --sun"});
-    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--albedo", "1.5"}, dir), 1,
-                       "usage", {"--albedo"});
+    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--albedo", "1.5"}, dir),
+                       1, "usage", {"--albedo"});
     expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--g", "1"}, dir), 1,
                        "usage", {"--g"});
     expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--source", "cubic"}, dir),
@@ -89,8 +95,8 @@ TEST(Cli, UsageErrorsExit1) {
         "usage", {"--directions-per-face", "got 65"});
     expectOneLineError(runLpmbake({"render", dataPath("vdb/torus01.vdb"), "-o", dir + "/x.jpg"}, dir), 1, "usage",
                        {".exr", ".png"});
-    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--up-axis", "x"}, dir),
-                       1, "usage", {"--up-axis", "x"});
+    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--up-axis", "x"}, dir), 1,
+                       "usage", {"--up-axis", "x"});
     EXPECT_FALSE(fs::exists(out));
 }
 
@@ -199,12 +205,33 @@ TEST(Cli, BakeInfoAndStats) {
     }
     EXPECT_GT(maxS, 0);
     // Metadata a consumer needs, all under the lpm: prefix.
-    for (const char* k : {"lpm:format_version", "lpm:version", "lpm:sh_order", "lpm:sh_basis", "lpm:quantity",
-                          "lpm:usage", "lpm:units", "lpm:working_colorspace", "lpm:density_scale", "lpm:albedo",
-                          "lpm:g", "lpm:lights", "lpm:suns", "lpm:env_file", "lpm:env_colorspace",
-                          "lpm:directions_per_face", "lpm:rays_per_voxel", "lpm:tolerance", "lpm:max_orders",
-                          "lpm:passes", "lpm:residual", "lpm:input_file", "lpm:input_grid", "lpm:timings",
-                          "lpm:storage", "lpm:decisions", "lpm:source_shape"})
+    for (const char* k : {"lpm:format_version",
+                          "lpm:version",
+                          "lpm:sh_order",
+                          "lpm:sh_basis",
+                          "lpm:quantity",
+                          "lpm:usage",
+                          "lpm:units",
+                          "lpm:working_colorspace",
+                          "lpm:density_scale",
+                          "lpm:albedo",
+                          "lpm:g",
+                          "lpm:lights",
+                          "lpm:suns",
+                          "lpm:env_file",
+                          "lpm:env_colorspace",
+                          "lpm:directions_per_face",
+                          "lpm:rays_per_voxel",
+                          "lpm:tolerance",
+                          "lpm:max_orders",
+                          "lpm:passes",
+                          "lpm:residual",
+                          "lpm:input_file",
+                          "lpm:input_grid",
+                          "lpm:timings",
+                          "lpm:storage",
+                          "lpm:decisions",
+                          "lpm:source_shape"})
         EXPECT_TRUE((*b.meta)[k]) << k;
     EXPECT_DOUBLE_EQ(metaDouble(*b.meta, "lpm:density_scale", 0), 0.5);
     EXPECT_FLOAT_EQ(metaRgb(*b.meta, "lpm:albedo", RGB(0.f)).g, 0.85f);
@@ -219,7 +246,8 @@ TEST(Cli, BakeInfoAndStats) {
 
     const auto info = runLpmbake({"info", out}, dir);
     EXPECT_EQ(info.code, 0) << info.err;
-    for (const char* s : {"sh_0", "sh_3", "scatter", "density", "lpm:sh_basis", "NaN/Inf voxels 0", "valid lpmbake bake: yes"})
+    for (const char* s :
+         {"sh_0", "sh_3", "scatter", "density", "lpm:sh_basis", "NaN/Inf voxels 0", "valid lpmbake bake: yes"})
         EXPECT_NE(info.out.find(s), std::string::npos) << s;
 }
 
@@ -244,7 +272,8 @@ TEST(Cli, InfoRejectsNonBakes) {
 TEST(Cli, EmptyFrameGivesValidEmptyBake) {
     const std::string dir = lpmtest::scratchDir();
     const std::string out = dir + "/empty.vdb";
-    const auto r = runLpmbake({dataPath("vdb/smoke_seq.0001.vdb"), "--env", dataPath("env/rooftop_small.hdr"), "-o", out}, dir);
+    const auto r =
+        runLpmbake({dataPath("vdb/smoke_seq.0001.vdb"), "--env", dataPath("env/rooftop_small.hdr"), "-o", out}, dir);
     EXPECT_EQ(r.code, 0) << r.err;
     EXPECT_NE(r.err.find("warning:"), std::string::npos);
     EXPECT_NE(r.err.find("no active voxels"), std::string::npos);
@@ -331,9 +360,11 @@ TEST(Cli, RenderPngAndExr) {
     auto a = torusArgs(bake);
     a.insert(a.end(), {"--sun", "0,1,0", "--sun-irradiance", "3"});
     ASSERT_EQ(runLpmbake(a, dir).code, 0);
-    auto r = runLpmbake({"render", bake, "--size", "48x32", "--env", dataPath("env/rooftop_small.hdr"), "-o", dir + "/p.png"}, dir);
+    auto r = runLpmbake(
+        {"render", bake, "--size", "48x32", "--env", dataPath("env/rooftop_small.hdr"), "-o", dir + "/p.png"}, dir);
     ASSERT_EQ(r.code, 0) << r.err;
-    r = runLpmbake({"render", bake, "--size", "48x32", "-o", dir + "/p.exr", "--eye", "-5.8,4,14", "--target", "-5.8,0,4.7"}, dir);
+    r = runLpmbake(
+        {"render", bake, "--size", "48x32", "-o", dir + "/p.exr", "--eye", "-5.8,4,14", "--target", "-5.8,0,4.7"}, dir);
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_EQ(tempFilesIn(dir), 0u);
 
@@ -368,8 +399,15 @@ TEST(Cli, ThreadsDefaultToSlurmAllocation) {
 TEST(Cli, EmissionGridIsALight) {
     const std::string dir = lpmtest::scratchDir();
     const std::string out = dir + "/h.vdb";
-    std::vector<std::string> a = {dataPath("vdb/densityAndHeat.vdb"), "--emission-grid", "heat", "--emission-scale", "2",
-                                  "--albedo", "0.5", "-o", out};
+    std::vector<std::string> a = {dataPath("vdb/densityAndHeat.vdb"),
+                                  "--emission-grid",
+                                  "heat",
+                                  "--emission-scale",
+                                  "2",
+                                  "--albedo",
+                                  "0.5",
+                                  "-o",
+                                  out};
     a.insert(a.end(), kCheap.begin(), kCheap.end());
     const auto r = runLpmbake(a, dir);
     ASSERT_EQ(r.code, 0) << r.err;
@@ -399,8 +437,16 @@ TEST(Cli, TemperatureGridEmitsBlackBody) {
     auto dens = lpmtest::cubeGrid(6, 1.0f, 1.0, "density");
     auto temp = lpmtest::cubeGrid(6, 1.8f, 1.0, "temperature");
     lpmtest::writeVdb(dir + "/fire.vdb", {dens, temp});
-    std::vector<std::string> a = {dir + "/fire.vdb", "--temperature-grid", "temperature", "--temperature-scale", "1000",
-                                  "--temperature-intensity", "1e4", "--working-space", "lin_rec709", "-o",
+    std::vector<std::string> a = {dir + "/fire.vdb",
+                                  "--temperature-grid",
+                                  "temperature",
+                                  "--temperature-scale",
+                                  "1000",
+                                  "--temperature-intensity",
+                                  "1e4",
+                                  "--working-space",
+                                  "lin_rec709",
+                                  "-o",
                                   dir + "/f.vdb"};
     a.insert(a.end(), kCheap.begin(), kCheap.end());
     auto r = runLpmbake(a, dir);
@@ -454,7 +500,8 @@ TEST(Cli, ShearedTransformIsResampledAndMappedBack) {
     for (int j = 0; j < 15; ++j)
         for (int i = 9; i <= 13; ++i)
             for (int k = 5; k <= 10; ++k) {
-                const double got = b.sh[0]->tree().getValue(openvdb::Coord(i, j, k))[0] * 0.28209479177387814 * 4 * M_PI;
+                const double got =
+                    b.sh[0]->tree().getValue(openvdb::Coord(i, j, k))[0] * 0.28209479177387814 * 4 * M_PI;
                 const double expect = std::exp(-0.3 * (15.5 - j)) * std::sinh(0.15) / 0.15;  // layer average
                 worst = std::max(worst, std::fabs(got / expect - 1));
             }
@@ -478,10 +525,9 @@ TEST(Cli, MultiresIsReportedAndRecorded) {
     const std::string js = lpmtest::readAll(stats);
     EXPECT_NE(js.find("\"coarse\": true"), std::string::npos);
     EXPECT_NE(js.find("\"coarse\": false"), std::string::npos);
-    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", dir + "/x.vdb", "--sun", "0,1,0", "--multires",
-                                   "maybe"},
-                                  dir),
-                       1, "usage", {"--multires", "maybe"});
+    expectOneLineError(
+        runLpmbake({dataPath("vdb/torus01.vdb"), "-o", dir + "/x.vdb", "--sun", "0,1,0", "--multires", "maybe"}, dir),
+        1, "usage", {"--multires", "maybe"});
 }
 
 // The exact sun term (docs/sun_term.md): on for g != 0, off for g = 0 (SH order 0 holds
@@ -512,7 +558,8 @@ TEST(Cli, SunTermIsChosenRecordedAndValidated) {
     EXPECT_EQ(metaRgb(*onBake.meta, "lpm:sun_term_0_irradiance", RGB(0.f)).g, 4.0f);
     EXPECT_EQ(onBake.sunTransmittance[0]->activeVoxelCount(), onBake.scatter->activeVoxelCount());
     float lo = 2, hi = -1;
-    for (auto it = onBake.sunTransmittance[0]->cbeginValueOn(); it; ++it) lo = std::min(lo, *it), hi = std::max(hi, *it);
+    for (auto it = onBake.sunTransmittance[0]->cbeginValueOn(); it; ++it)
+        lo = std::min(lo, *it), hi = std::max(hi, *it);
     EXPECT_GE(lo, 0.0f);
     EXPECT_LE(hi, 1.0f);
     EXPECT_GT(hi, 0.5f);
@@ -535,9 +582,10 @@ TEST(Cli, SunTermIsChosenRecordedAndValidated) {
 
     // A file whose sun grid went missing is not a valid bake.
     BakeFile broken = onBake;
-    broken.grids.erase(std::remove_if(broken.grids.begin(), broken.grids.end(),
-                                      [](const openvdb::GridBase::Ptr& g) { return g->getName() == "sun_transmittance_0"; }),
-                       broken.grids.end());
+    broken.grids.erase(
+        std::remove_if(broken.grids.begin(), broken.grids.end(),
+                       [](const openvdb::GridBase::Ptr& g) { return g->getName() == "sun_transmittance_0"; }),
+        broken.grids.end());
     openvdb::io::File f(dir + "/broken.vdb");
     f.write(broken.grids, *broken.meta);
     f.close();
@@ -597,10 +645,12 @@ TEST(Cli, SidecarHoldsTheFilesMetadata) {
 
     const std::string seqDir = dir + "/seq";
     fs::create_directories(seqDir);
-    for (int f : {2, 3}) fs::copy_file(dataPath("vdb/smoke_seq.000" + std::to_string(f) + ".vdb"),
-                                       seqDir + "/in.000" + std::to_string(f) + ".vdb");
-    std::vector<std::string> s = {seqDir + "/in.####.vdb", "--frames", "2-3", "--sun", "0,1,0", "-o",
-                                  seqDir + "/out.####.vdb", "--sidecar", seqDir + "/out.####.json", "-q"};
+    for (int f : {2, 3})
+        fs::copy_file(dataPath("vdb/smoke_seq.000" + std::to_string(f) + ".vdb"),
+                      seqDir + "/in.000" + std::to_string(f) + ".vdb");
+    std::vector<std::string> s = {
+        seqDir + "/in.####.vdb",   "--frames", "2-3", "--sun", "0,1,0", "-o", seqDir + "/out.####.vdb", "--sidecar",
+        seqDir + "/out.####.json", "-q"};
     s.insert(s.end(), kCheap.begin(), kCheap.end());
     ASSERT_EQ(runLpmbake(s, dir).code, 0);
     EXPECT_TRUE(fs::exists(seqDir + "/out.0002.json"));

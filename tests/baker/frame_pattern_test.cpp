@@ -20,7 +20,8 @@ TEST(FramePattern, EveryConventionExpands) {
 }
 
 TEST(FramePattern, LookAlikesAreNotPatterns) {
-    for (const char* p : {"smoke.vdb", "$FF.vdb", "$FOO/a.vdb", "100%.vdb", "%s.vdb", "%0d.vdb", "a$.vdb", "$F_a.vdb"}) {
+    for (const char* p : {"smoke.vdb", "$FF.vdb", "$FOO/a.vdb", "100%.vdb", "%s.vdb", "%0d.vdb", "a$.vdb", "$F_a.vdb"})
+    {
         EXPECT_FALSE(hasFramePattern(p)) << p;
         EXPECT_EQ(expandFramePattern(p, 3), p);
     }
@@ -34,14 +35,14 @@ TEST(FrameList, RangesStepsAndLists) {
     EXPECT_EQ(parseFrameList("1-10x4"), (std::vector<int>{1, 5, 9}));
     EXPECT_EQ(parseFrameList("1,5,9-12"), (std::vector<int>{1, 5, 9, 10, 11, 12}));
     EXPECT_EQ(parseFrameList("7"), (std::vector<int>{7}));
-    EXPECT_EQ(parseFrameList("3,1,2"), (std::vector<int>{3, 1, 2}));  // order kept
+    EXPECT_EQ(parseFrameList("3,1,2"), (std::vector<int>{3, 1, 2}));       // order kept
     EXPECT_EQ(parseFrameList("1-3,2-4"), (std::vector<int>{1, 2, 3, 4}));  // each frame once
     EXPECT_EQ(parseFrameList("-3--1"), (std::vector<int>{-3, -2, -1}));
 }
 
 TEST(FrameList, BadListsNameTheList) {
-    for (const char* bad : {"", "a", "1-", "5-1", "1-5x0", "1-5x", "1,,2", "1;2", "1-5y2", "99999999999",
-                            "0-2000000"}) {
+    for (const char* bad : {"", "a", "1-", "5-1", "1-5x0", "1-5x", "1,,2", "1;2", "1-5y2", "99999999999", "0-2000000"})
+    {
         try {
             parseFrameList(bad);
             ADD_FAILURE() << "accepted '" << bad << "'";

@@ -31,8 +31,8 @@ Vec3 firstBand(const std::string& path) {
 
 void expectSameSide(const Vec3& band1, const Vec3& toward, const std::string& what) {
     for (int a = 0; a < 3; ++a) {
-        EXPECT_LT(band1[a] * toward[a], 0) << what << ": axis " << a << " coefficient " << band1[a]
-                                           << " toward " << toward[a];
+        EXPECT_LT(band1[a] * toward[a], 0)
+            << what << ": axis " << a << " coefficient " << band1[a] << " toward " << toward[a];
     }
 }
 
@@ -46,8 +46,8 @@ TEST(Orientation, SunAndEnvironmentHotSpotAgree) {
     lpmtest::writeLatLong(dir + "/spot.exr", 128, 64, [&](const Vec3& d) {
         return dot(d, toward) > std::cos(12 * kPi / 180) ? RGB(50.f) : RGB(0.f);
     });
-    const std::vector<std::string> common = {"--g", "0.6", "--sh-order", "1", "--albedo", "0.5",
-                                             "--directions-per-face", "3", "--tolerance", "1e-2", "-q"};
+    const std::vector<std::string> common = {
+        "--g", "0.6", "--sh-order", "1", "--albedo", "0.5", "--directions-per-face", "3", "--tolerance", "1e-2", "-q"};
     auto bake = [&](std::vector<std::string> a) {
         a.insert(a.begin(), dir + "/cube.vdb");
         a.insert(a.end(), common.begin(), common.end());

@@ -36,7 +36,8 @@ TEST(RenderConsistency, RenderOfBakeMatchesMonteCarloImage) {
         for (int z = 0; z < m.nz; ++z)
             for (int y = 0; y < m.ny; ++y)
                 for (int x = 0; x < m.nx; ++x)
-                    if (m.sigmaT[m.index(x, y, z)] > 0) acc.setValue(openvdb::Coord(x, y, z), m.sigmaT[m.index(x, y, z)]);
+                    if (m.sigmaT[m.index(x, y, z)] > 0)
+                        acc.setValue(openvdb::Coord(x, y, z), m.sigmaT[m.index(x, y, z)]);
     }
     lpmtest::writeVdb(dir + "/cloud.vdb", {grid});
     // Environment: a sky gradient with a broad warm spot, written as an ACEScg EXR.
@@ -55,10 +56,10 @@ TEST(RenderConsistency, RenderOfBakeMatchesMonteCarloImage) {
     const EnvMap env(ew, eh, px);
     const Vec3 toSun = normalize(Vec3{0.4, 1.0, 0.3});
 
-    const auto bake = lpmtest::runLpmbake({dir + "/cloud.vdb", "--env", dir + "/sky.exr", "--env-colorspace", "ACEScg",
-                                           "--sun", "0.4,1.0,0.3", "--sun-irradiance", "2", "--sun-angle", "0",
-                                           "--albedo", "0.8", "--g", "0.3", "-q", "-o", dir + "/baked.vdb"},
-                                          dir);
+    const auto bake = lpmtest::runLpmbake(
+        {dir + "/cloud.vdb", "--env", dir + "/sky.exr", "--env-colorspace", "ACEScg", "--sun", "0.4,1.0,0.3",
+         "--sun-irradiance", "2", "--sun-angle", "0", "--albedo", "0.8", "--g", "0.3", "-q", "-o", dir + "/baked.vdb"},
+        dir);
     ASSERT_EQ(bake.code, 0) << bake.err;
     PinholeCamera cam;
     cam.eye = {1.15, 1.9, 4.2};
@@ -66,11 +67,11 @@ TEST(RenderConsistency, RenderOfBakeMatchesMonteCarloImage) {
     cam.fovYDeg = 38;
     cam.width = 48;
     cam.height = 36;
-    const auto render = lpmtest::runLpmbake({"render", dir + "/baked.vdb", "--env", dir + "/sky.exr", "--env-colorspace",
-                                             "ACEScg", "--eye", "1.15,1.9,4.2", "--target", "1.15,1.15,1.15",
-                                             "--fov-y", "38", "--size", "48x36", "--step", "0.25", "-q", "-o",
-                                             dir + "/render.exr"},
-                                            dir);
+    const auto render =
+        lpmtest::runLpmbake({"render", dir + "/baked.vdb", "--env", dir + "/sky.exr", "--env-colorspace", "ACEScg",
+                             "--eye", "1.15,1.9,4.2", "--target", "1.15,1.15,1.15", "--fov-y", "38", "--size", "48x36",
+                             "--step", "0.25", "-q", "-o", dir + "/render.exr"},
+                            dir);
     ASSERT_EQ(render.code, 0) << render.err;
     auto in = OIIO::ImageInput::open(dir + "/render.exr");
     ASSERT_TRUE(in);
@@ -113,9 +114,10 @@ TEST(RenderConsistency, RenderOfBakeMatchesMonteCarloImage) {
         }
     ASSERT_GT(n, 300);
     const double mean = sum / n, rel = std::sqrt(se / n) / mean, relNoise = std::sqrt(noise / n) / mean;
-    std::printf("[ render ] %d pixel channels over the volume: relative RMS image error %.4f (MC noise %.4f), "
-                "mean render / MC %.4f\n",
-                n, rel, relNoise, sumR / sum);
+    std::printf(
+        "[ render ] %d pixel channels over the volume: relative RMS image error %.4f (MC noise %.4f), "
+        "mean render / MC %.4f\n",
+        n, rel, relNoise, sumR / sum);
     if (std::getenv("LPM_TEST_DUMP")) {  // write both images for a look
         for (int k = 0; k < 2; ++k) {
             auto out = OIIO::ImageOutput::create(dir + (k ? "/mc.exr" : "/render3.exr"));

@@ -23,8 +23,8 @@ using namespace lpm;
 
 namespace {
 
-constexpr int kN = 8;          // cube of kN^3 voxels, index 0..kN-1
-constexpr double kH = 0.1;     // voxel size; voxel centres at index * kH
+constexpr int kN = 8;             // cube of kN^3 voxels, index 0..kN-1
+constexpr double kH = 0.1;        // voxel size; voxel centres at index * kH
 constexpr int kW = 40, kHt = 40;  // image size
 
 struct EdgeCase {
@@ -49,10 +49,10 @@ EdgeError measure(const EdgeCase& c) {
     lpmtest::writeVdb(dir + "/cube.vdb", {lpmtest::cubeGrid(kN, sigma, kH)});
     lpmtest::writeLatLong(dir + "/sky.exr", 64, 32, sky);
     const std::string albedo = std::to_string(c.albedo), g = std::to_string(c.g);
-    const auto bake = lpmtest::runLpmbake({dir + "/cube.vdb", "--env", dir + "/sky.exr", "--env-colorspace", "ACEScg",
-                                           "--sun", "0.4,1.0,0.3", "--sun-irradiance", "3", "--sun-angle", "0",
-                                           "--albedo", albedo, "--g", g, "-q", "-o", dir + "/baked.vdb"},
-                                          dir);
+    const auto bake = lpmtest::runLpmbake(
+        {dir + "/cube.vdb", "--env", dir + "/sky.exr", "--env-colorspace", "ACEScg", "--sun", "0.4,1.0,0.3",
+         "--sun-irradiance", "3", "--sun-angle", "0", "--albedo", albedo, "--g", g, "-q", "-o", dir + "/baked.vdb"},
+        dir);
     EXPECT_EQ(bake.code, 0) << bake.err;
     PinholeCamera cam;
     cam.eye = {1.6, 1.3, 2.2};
@@ -60,11 +60,11 @@ EdgeError measure(const EdgeCase& c) {
     cam.fovYDeg = 30;
     cam.width = kW;
     cam.height = kHt;
-    const auto render = lpmtest::runLpmbake({"render", dir + "/baked.vdb", "--env", dir + "/sky.exr",
-                                             "--env-colorspace", "ACEScg", "--eye", "1.6,1.3,2.2", "--target",
-                                             "0.35,0.35,0.35", "--fov-y", "30", "--size", "40x40", "--step", "0.05",
-                                             "-q", "-o", dir + "/render.exr"},
-                                            dir);
+    const auto render =
+        lpmtest::runLpmbake({"render", dir + "/baked.vdb", "--env", dir + "/sky.exr", "--env-colorspace", "ACEScg",
+                             "--eye", "1.6,1.3,2.2", "--target", "0.35,0.35,0.35", "--fov-y", "30", "--size", "40x40",
+                             "--step", "0.05", "-q", "-o", dir + "/render.exr"},
+                            dir);
     EXPECT_EQ(render.code, 0) << render.err;
     const std::vector<float> img = lpmtest::readRgb(dir + "/render.exr", kW, kHt);
     if (img.empty()) return {};
@@ -93,9 +93,10 @@ EdgeError measure(const EdgeCase& c) {
     }
 
     const EdgeError e = lpmtest::compareOnCube(img, ref, cam, kN, kH);
-    std::printf("[ edge ] tau/voxel %.3g albedo %.2f g %.2f: %d pixels, render / MC %.4f, relative RMS %.4f "
-                "(MC noise %.4f)\n",
-                c.tauPerVoxel, c.albedo, c.g, e.pixels, e.meanRatio, e.relRms, e.relNoise);
+    std::printf(
+        "[ edge ] tau/voxel %.3g albedo %.2f g %.2f: %d pixels, render / MC %.4f, relative RMS %.4f "
+        "(MC noise %.4f)\n",
+        c.tauPerVoxel, c.albedo, c.g, e.pixels, e.meanRatio, e.relRms, e.relNoise);
     return e;
 }
 
@@ -137,9 +138,8 @@ TEST(RenderEdge, ThinCubeMatchesMonteCarlo) {
 TEST(RenderEdge, WarnsForABakeWithoutTheShell) {
     const std::string dir = lpmtest::scratchDir();
     lpmtest::writeVdb(dir + "/cube.vdb", {lpmtest::cubeGrid(4, 2.f)});
-    auto r = lpmtest::runLpmbake({dir + "/cube.vdb", "--sun", "0,1,0", "--directions-per-face", "2", "-q", "-o",
-                                  dir + "/baked.vdb"},
-                                 dir);
+    auto r = lpmtest::runLpmbake(
+        {dir + "/cube.vdb", "--sun", "0,1,0", "--directions-per-face", "2", "-q", "-o", dir + "/baked.vdb"}, dir);
     ASSERT_EQ(r.code, 0) << r.err;
     BakeFile b = readBakeFile(dir + "/baked.vdb");
     ASSERT_TRUE(b.density && b.scatter);

@@ -14,8 +14,8 @@
 namespace lpmtest {
 
 struct RunResult {
-    int code = -1;        ///< exit code, -1 if killed
-    int signal = 0;       ///< terminating signal, 0 if exited
+    int code = -1;   ///< exit code, -1 if killed
+    int signal = 0;  ///< terminating signal, 0 if exited
     std::string out, err;
     int errLines() const {
         int n = 0;

@@ -59,8 +59,14 @@ TEST(Sequence, SameBakeAloneInASequenceInAnyOrderWithAnyThreads) {
     const std::string dir = lpmtest::scratchDir(), in = copyFrames(dir);
     const auto seq = runLpmbake(seqArgs(in, dir + "/seq.$F4.vdb", "3,2,1", {"--threads", "2", "-q"}), dir);
     ASSERT_EQ(seq.code, 0) << seq.err;
-    std::vector<std::string> alone = {dir + "/in/smoke.0002.vdb", "--env", dataPath("env/rooftop_small.hdr"), "-o",
-                                      dir + "/alone.vdb", "--threads", "1", "-q"};
+    std::vector<std::string> alone = {dir + "/in/smoke.0002.vdb",
+                                      "--env",
+                                      dataPath("env/rooftop_small.hdr"),
+                                      "-o",
+                                      dir + "/alone.vdb",
+                                      "--threads",
+                                      "1",
+                                      "-q"};
     alone.insert(alone.end(), kCheap.begin(), kCheap.end());
     ASSERT_EQ(runLpmbake(alone, dir).code, 0);
     const std::string d2 = digest(dir + "/seq.0002.vdb", dir);
@@ -86,7 +92,7 @@ TEST(Sequence, SkipExistingRedoesOnlyMissingInvalidStaleOrChangedFrames) {
         return r.out;
     };
     EXPECT_EQ(pending(), "\n");
-    EXPECT_EQ(pending({"--albedo", "0.8"}), "1-3\n");                      // other settings
+    EXPECT_EQ(pending({"--albedo", "0.8"}), "1-3\n");                          // other settings
     EXPECT_EQ(pending({"--threads", "1", "--stats", dir + "/s.json"}), "\n");  // not settings
     const std::string bytes = lpmtest::readBytes(dir + "/lit.0003.vdb");
     lpmtest::writeBytes(dir + "/lit.0003.vdb", bytes.substr(0, bytes.size() / 2));  // a damaged file
@@ -136,16 +142,16 @@ TEST(Sequence, FailedFramesStopTheSequenceOrAreListedWithKeepGoing) {
 TEST(Sequence, EnvironmentReadOncePerSequenceAndOneJsonLinePerFrame) {
     const std::string dir = lpmtest::scratchDir(), in = copyFrames(dir);
     const std::string log = dir + "/frames.jsonl";
-    const auto r = runLpmbake(
-        seqArgs(in, dir + "/lit.%04d.vdb", "1-3", {"--stats", dir + "/seq.json", "--frame-log", log, "-q"}), dir,
-        {{"SLURM_CPUS_PER_TASK", "1"}});
+    const auto r =
+        runLpmbake(seqArgs(in, dir + "/lit.%04d.vdb", "1-3", {"--stats", dir + "/seq.json", "--frame-log", log, "-q"}),
+                   dir, {{"SLURM_CPUS_PER_TASK", "1"}});
     ASSERT_EQ(r.code, 0) << r.err;
     const std::string stats = lpmtest::readBytes(dir + "/seq.json");
     EXPECT_NE(stats.find("\"environment_reads\": 1,"), std::string::npos) << stats;
     const std::string lines = lpmtest::readBytes(log);
     EXPECT_EQ(countOf(lines, "\n"), 3);
-    for (const char* field : {"\"frame\": ", "\"status\": \"baked\"", "\"seconds\": ", "\"threads\": 1,", "\"passes\": ",
-                              "\"residual\": ", "\"peak_rss_mib\": ", "\"output\": "})
+    for (const char* field : {"\"frame\": ", "\"status\": \"baked\"", "\"seconds\": ", "\"threads\": 1,",
+                              "\"passes\": ", "\"residual\": ", "\"peak_rss_mib\": ", "\"output\": "})
         EXPECT_EQ(countOf(lines, field), 3) << field << "\n" << lines;
     EXPECT_EQ(countOf(lines, "\"environment_reused\": true"), 2) << lines;
     // A per-frame stats pattern writes one stats file per frame instead.
@@ -153,8 +159,8 @@ TEST(Sequence, EnvironmentReadOncePerSequenceAndOneJsonLinePerFrame) {
     EXPECT_TRUE(fs::exists(dir + "/b.2.json"));
     EXPECT_TRUE(fs::exists(dir + "/b.3.json"));
     // A frame log that cannot be written stops the sequence with an output error.
-    const auto bad = runLpmbake(
-        seqArgs(in, dir + "/c.@.vdb", "2", {"--frame-log", dir + "/no/such/dir/log.@.jsonl", "-q"}), dir);
+    const auto bad =
+        runLpmbake(seqArgs(in, dir + "/c.@.vdb", "2", {"--frame-log", dir + "/no/such/dir/log.@.jsonl", "-q"}), dir);
     EXPECT_EQ(bad.code, 3) << bad.err;
     EXPECT_NE(bad.err.find("frame log: cannot write '" + dir + "/no/such/dir/log.2.jsonl'"), std::string::npos)
         << bad.err;

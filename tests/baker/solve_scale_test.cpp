@@ -21,8 +21,15 @@ namespace {
 const std::vector<std::string> kCheap = {"--directions-per-face", "2", "--tolerance", "1e-2", "--rays-per-voxel", "1"};
 
 std::vector<std::string> torusArgs(const std::string& out, const std::vector<std::string>& more = {}) {
-    std::vector<std::string> a = {dataPath("vdb/torus01.vdb"), "--grid", "voxel_fog_density", "--env",
-                                  dataPath("env/rooftop_small.hdr"), "--sun", "0.3,0.8,0.5", "-o", out};
+    std::vector<std::string> a = {dataPath("vdb/torus01.vdb"),
+                                  "--grid",
+                                  "voxel_fog_density",
+                                  "--env",
+                                  dataPath("env/rooftop_small.hdr"),
+                                  "--sun",
+                                  "0.3,0.8,0.5",
+                                  "-o",
+                                  out};
     a.insert(a.end(), kCheap.begin(), kCheap.end());
     a.insert(a.end(), more.begin(), more.end());
     return a;
@@ -130,8 +137,8 @@ TEST(SolveScale, OutputKeepsInputTopologyAndRecordsTheGrid) {
     ASSERT_TRUE(src);
     for (const std::string s : {"0.5", "2", "0.3"}) {
         const std::string out = dir + "/t" + s + ".vdb", stats = dir + "/s" + s + ".json";
-        const auto r = runLpmbake(torusArgs(out, {"--solve-scale", s, "--g", "0.5", "--sh-order", "1", "--stats", stats}),
-                                  dir);
+        const auto r =
+            runLpmbake(torusArgs(out, {"--solve-scale", s, "--g", "0.5", "--sh-order", "1", "--stats", stats}), dir);
         ASSERT_EQ(r.code, 0) << r.err;
         EXPECT_NE(r.err.find("lpmbake: solve grid "), std::string::npos) << r.err;
         EXPECT_NE(r.err.find("(--solve-scale " + s), std::string::npos) << r.err;

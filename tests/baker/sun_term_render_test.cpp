@@ -58,11 +58,27 @@ Scene& scene() {
         lpmtest::writeVdb(c.dir + "/cube.vdb", {lpmtest::cubeGrid(kN, sigma, kH)});
         lpmtest::writeLatLong(c.dir + "/sky.exr", 64, 32, dimSky);
         for (const char* mode : {"on", "off"}) {
-            const auto r = lpmtest::runLpmbake(
-                {c.dir + "/cube.vdb", "--env", c.dir + "/sky.exr", "--env-colorspace", "ACEScg", "--sun", vec(kToSun),
-                 "--sun-irradiance", "3", "--sun-angle", "0", "--albedo", std::to_string(kAlbedo), "--g",
-                 std::to_string(kG), "--sun-term", mode, "-q", "-o", c.dir + "/baked_" + mode + ".vdb"},
-                c.dir);
+            const auto r = lpmtest::runLpmbake({c.dir + "/cube.vdb",
+                                                "--env",
+                                                c.dir + "/sky.exr",
+                                                "--env-colorspace",
+                                                "ACEScg",
+                                                "--sun",
+                                                vec(kToSun),
+                                                "--sun-irradiance",
+                                                "3",
+                                                "--sun-angle",
+                                                "0",
+                                                "--albedo",
+                                                std::to_string(kAlbedo),
+                                                "--g",
+                                                std::to_string(kG),
+                                                "--sun-term",
+                                                mode,
+                                                "-q",
+                                                "-o",
+                                                c.dir + "/baked_" + mode + ".vdb"},
+                                               c.dir);
             EXPECT_EQ(r.code, 0) << r.err;
         }
         c.medium.allocate(kN, kN, kN);
@@ -93,20 +109,37 @@ AngleResult measure(double deg) {
     AngleResult out;
     for (const char* mode : {"on", "off"}) {
         const std::string img = s.dir + "/render_" + mode + "_" + std::to_string(int(deg)) + ".exr";
-        const auto r = lpmtest::runLpmbake({"render", s.dir + "/baked_" + mode + ".vdb", "--env", s.dir + "/sky.exr",
-                                            "--env-colorspace", "ACEScg", "--eye", vec(cam.eye), "--target",
-                                            vec(cam.target), "--up", vec(cam.up), "--fov-y", "26", "--size",
-                                            std::to_string(kW) + "x" + std::to_string(kHt), "--step", "0.05", "-q",
-                                            "-o", img},
+        const auto r = lpmtest::runLpmbake({"render",
+                                            s.dir + "/baked_" + mode + ".vdb",
+                                            "--env",
+                                            s.dir + "/sky.exr",
+                                            "--env-colorspace",
+                                            "ACEScg",
+                                            "--eye",
+                                            vec(cam.eye),
+                                            "--target",
+                                            vec(cam.target),
+                                            "--up",
+                                            vec(cam.up),
+                                            "--fov-y",
+                                            "26",
+                                            "--size",
+                                            std::to_string(kW) + "x" + std::to_string(kHt),
+                                            "--step",
+                                            "0.05",
+                                            "-q",
+                                            "-o",
+                                            img},
                                            s.dir);
         EXPECT_EQ(r.code, 0) << r.err;
         (std::string(mode) == "on" ? out.exact : out.sh) =
             lpmtest::compareOnCube(lpmtest::readRgb(img, kW, kHt), ref, cam, kN, kH);
     }
-    std::printf("[ sun term ] %3.0f deg: %d pixels, render / MC exact %.4f (RMS %.4f), through SH %.4f (RMS %.4f); "
-                "MC noise %.4f\n",
-                deg, out.exact.pixels, out.exact.meanRatio, out.exact.relRms, out.sh.meanRatio, out.sh.relRms,
-                out.exact.relNoise);
+    std::printf(
+        "[ sun term ] %3.0f deg: %d pixels, render / MC exact %.4f (RMS %.4f), through SH %.4f (RMS %.4f); "
+        "MC noise %.4f\n",
+        deg, out.exact.pixels, out.exact.meanRatio, out.exact.relRms, out.sh.meanRatio, out.sh.relRms,
+        out.exact.relNoise);
     return out;
 }
 

@@ -32,7 +32,8 @@ TEST(DeltaM, EnergyBalanceAndDecision) {
     double maxRatio = 0;
     for (size_t v = 0; v < m.voxelCount(); ++v) {
         if (m.sigmaT[v] <= 0) continue;
-        const double b1 = std::sqrt(std::pow(r.coeff(v, 1)[0], 2) + std::pow(r.coeff(v, 2)[0], 2) + std::pow(r.coeff(v, 3)[0], 2));
+        const double b1 =
+            std::sqrt(std::pow(r.coeff(v, 1)[0], 2) + std::pow(r.coeff(v, 2)[0], 2) + std::pow(r.coeff(v, 3)[0], 2));
         maxRatio = std::max(maxRatio, b1 / r.coeff(v, 0)[0]);
     }
     EXPECT_GT(maxRatio, 0.5 * std::sqrt(3.0));
@@ -87,9 +88,10 @@ TEST(DeltaM, ForwardPeakAgainstMonteCarlo) {
     dm.deltaM = 1;
     const LpmResult rp = solveLpm(sc.medium, sc.lights, plain), rd = solveLpm(sc.medium, sc.lights, dm);
     const Comparison ep = compare(rp, mc), ed = compare(rd, mc);
-    std::printf("[ g 0.99 ] band 0: plain %.4f, delta-M %.4f (noise %.4f); bands 1-2: plain %.4f, delta-M %.4f; "
-                "passes %zu vs %zu\n",
-                ep.band0Rms, ed.band0Rms, ed.band0Noise, ep.band12Rms, ed.band12Rms, rp.passes.size(), rd.passes.size());
+    std::printf(
+        "[ g 0.99 ] band 0: plain %.4f, delta-M %.4f (noise %.4f); bands 1-2: plain %.4f, delta-M %.4f; "
+        "passes %zu vs %zu\n",
+        ep.band0Rms, ed.band0Rms, ed.band0Noise, ep.band12Rms, ed.band12Rms, rp.passes.size(), rd.passes.size());
     EXPECT_LT(ed.band0Noise, 0.01);
     EXPECT_LT(ed.band0Rms, 0.012);
     EXPECT_LT(ed.band12Rms, 0.06);

@@ -78,8 +78,8 @@ TEST(Gmres, MatchesDirectSolveWithAndWithoutRestarts) {
     const std::vector<double> w(n, 1.0);
     for (int restart : {40, 5}) {
         std::vector<float> x;
-        const GmresReport rep = solveGmres(operatorOf(K), b, w, 1e-6 * std::sqrt(double(n)), restart,
-                                           [] { return true; }, x);
+        const GmresReport rep = solveGmres(
+            operatorOf(K), b, w, 1e-6 * std::sqrt(double(n)), restart, [] { return true; }, x);
         EXPECT_TRUE(rep.converged) << "restart " << restart;
         double err = 0, norm = 0;
         for (int i = 0; i < n; ++i) {
@@ -100,11 +100,13 @@ TEST(Gmres, WeightedInnerProductAndBudget) {
     for (int i = 0; i < n; ++i) w[i] = 0.5 + i % 3;
     std::vector<float> x;
     int budget = 3;
-    const GmresReport stopped = solveGmres(operatorOf(K), b, w, 0.0, 40, [&] { return budget-- > 0; }, x);
+    const GmresReport stopped = solveGmres(
+        operatorOf(K), b, w, 0.0, 40, [&] { return budget-- > 0; }, x);
     EXPECT_FALSE(stopped.converged);
     EXPECT_LE(stopped.matvecs, 4);
     EXPECT_NEAR(stopped.rhsNorm * stopped.rhsNorm, weightedDot(w, b, b), 1e-9 * weightedDot(w, b, b));
-    const GmresReport done = solveGmres(operatorOf(K), b, w, 1e-5, 40, [] { return true; }, x);
+    const GmresReport done = solveGmres(
+        operatorOf(K), b, w, 1e-5, 40, [] { return true; }, x);
     EXPECT_TRUE(done.converged);
     EXPECT_LE(done.residualNorm, 1e-5);
 }
@@ -119,11 +121,13 @@ TEST(Gmres, SameResultForAnyThreadCount) {
     };
     {
         ThreadLimit one(1);
-        solveGmres(A, b, w, 1e-3, 10, [] { return true; }, w1);
+        solveGmres(
+            A, b, w, 1e-3, 10, [] { return true; }, w1);
     }
     {
         ThreadLimit two(2);
-        solveGmres(A, b, w, 1e-3, 10, [] { return true; }, w2);
+        solveGmres(
+            A, b, w, 1e-3, 10, [] { return true; }, w2);
     }
     EXPECT_EQ(w1, w2);
 }

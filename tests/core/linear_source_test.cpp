@@ -76,7 +76,8 @@ TEST(LinearSource, AutoDecisionFollowsVoxelOpticalDepth) {
     LpmSettings s;
     s.maxOrders = 1;
     scaleToMaxOpticalDepth(m, 4.0);  // voxels below optical depth 2: step source
-    EXPECT_TRUE(saidDecision(solveLpm(m, lights, s), "voxel-constant source inside voxels: largest voxel optical depth"));
+    EXPECT_TRUE(
+        saidDecision(solveLpm(m, lights, s), "voxel-constant source inside voxels: largest voxel optical depth"));
     scaleToMaxOpticalDepth(m, 40.0);
     EXPECT_TRUE(saidDecision(solveLpm(m, lights, s), "linear source inside voxels: largest voxel optical depth"));
     s.linearSource = 0;
@@ -97,7 +98,8 @@ TEST(LinearSource, ThickVoxelsConvergeTowardMonteCarlo) {
     step.linearSource = 0;
     const Comparison es = compare(solveLpm(sc.medium, sc.lights, step), mc);
     const Comparison el = compare(solveLpm(sc.medium, sc.lights, linearSettings()), mc);
-    std::printf("[ thick ] band-0 RMS: step %.4f, linear %.4f (MC noise %.4f)\n", es.band0Rms, el.band0Rms, el.band0Noise);
+    std::printf("[ thick ] band-0 RMS: step %.4f, linear %.4f (MC noise %.4f)\n", es.band0Rms, el.band0Rms,
+                el.band0Noise);
     EXPECT_LT(el.band0Noise, 0.015);
     EXPECT_LT(el.band0Rms, 0.5 * es.band0Rms);
     EXPECT_LT(el.band0Rms, 0.12);

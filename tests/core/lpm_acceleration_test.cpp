@@ -60,7 +60,8 @@ TEST(KrylovAcceleration, AgreesWithPlainIteration) {
     double worst = 0;
     for (size_t v = 0; v < m.voxelCount(); ++v)
         if (m.sigmaT[v] > 0)
-            for (int c = 0; c < 3; ++c) worst = std::max(worst, std::fabs(double(b.coeff(v, 0)[c]) / a.coeff(v, 0)[c] - 1));
+            for (int c = 0; c < 3; ++c)
+                worst = std::max(worst, std::fabs(double(b.coeff(v, 0)[c]) / a.coeff(v, 0)[c] - 1));
     std::printf("[ krylov ] plain %zu passes %.2f s, GMRES %zu passes %.2f s, worst band-0 difference %.5f\n",
                 a.passes.size(), a.seconds, b.passes.size(), b.seconds, worst);
     EXPECT_LT(worst, 2e-3);

@@ -37,8 +37,8 @@ TEST(LpmSolver, EnergyBalanceEnvironmentAndSun) {
     const LpmResult r = solveLpm(m, lights, s);
     ASSERT_TRUE(r.converged);
     const double out = r.absorbed + r.escaped + r.unshot;
-    EXPECT_NEAR(out / r.injected, 1.0, 1e-3) << "injected " << r.injected << " absorbed " << r.absorbed
-                                               << " escaped " << r.escaped << " unshot " << r.unshot;
+    EXPECT_NEAR(out / r.injected, 1.0, 1e-3) << "injected " << r.injected << " absorbed " << r.absorbed << " escaped "
+                                             << r.escaped << " unshot " << r.unshot;
     // Each pass's scattered power is the next pass's injected power.
     for (size_t k = 1; k < r.passes.size(); ++k)
         EXPECT_NEAR(r.passes[k].injected, r.passes[k - 1].scattered, 1e-4 * r.passes[k - 1].scattered + 1e-12);
@@ -83,7 +83,8 @@ TEST_P(WhiteFurnace, SEqualsL0Everywhere) {
     for (size_t v = 0; v < m.voxelCount(); ++v) {
         if (m.sigmaT[v] <= 0) continue;
         worst0 = std::max(worst0, std::fabs(band0(r, v) / L0 - 1));
-        for (int k = 1; k < r.coeffs; ++k) worstHigh = std::max(worstHigh, double(std::fabs(r.coeff(v, k)[0])) * kY00 / L0);
+        for (int k = 1; k < r.coeffs; ++k)
+            worstHigh = std::max(worstHigh, double(std::fabs(r.coeff(v, k)[0])) * kY00 / L0);
     }
     EXPECT_LT(worst0, 5e-3) << "worst band-0 deviation, g = " << m.g;
     EXPECT_LT(worstHigh, 5e-3) << "worst higher-band coefficient, g = " << m.g;
@@ -287,10 +288,8 @@ TEST_P(BitIdentical, ForAnyThreadCount) {
     for (int threads : {1, 2, 16}) {
         ThreadLimit limit(threads);
         const LpmResult r = solveLpm(m, lights, s);
-        if (ref.empty())
-            ref = r.sh;
-        else
-            EXPECT_EQ(0, std::memcmp(ref.data(), r.sh.data(), ref.size() * sizeof(float))) << threads << " threads";
+        if (ref.empty()) ref = r.sh;
+        else EXPECT_EQ(0, std::memcmp(ref.data(), r.sh.data(), ref.size() * sizeof(float))) << threads << " threads";
     }
 }
 INSTANTIATE_TEST_SUITE_P(LinearSource, BitIdentical, ::testing::Values(0, 1));

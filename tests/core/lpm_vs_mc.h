@@ -57,10 +57,10 @@ inline std::vector<size_t> sampleVoxels(const Medium& m, int count, std::uint64_
 }
 
 struct Comparison {
-    double band0Rms = 0;      ///< relative RMS error of band 0 (all channels), MC noise included
-    double band0Noise = 0;    ///< RMS relative standard error of the MC estimates
-    double band0Bias = 0;     ///< mean relative error (LPM - MC) / MC
-    double band12Rms = 0;     ///< RMS over voxels of |c_1..8 (LPM - MC)| / |c_0 (MC)|
+    double band0Rms = 0;    ///< relative RMS error of band 0 (all channels), MC noise included
+    double band0Noise = 0;  ///< RMS relative standard error of the MC estimates
+    double band0Bias = 0;   ///< mean relative error (LPM - MC) / MC
+    double band12Rms = 0;   ///< RMS over voxels of |c_1..8 (LPM - MC)| / |c_0 (MC)|
     double band12Noise = 0;
     /// Band-0 error with the MC noise removed in quadrature.
     double band0Corrected() const { return std::sqrt(std::max(0.0, band0Rms * band0Rms - band0Noise * band0Noise)); }

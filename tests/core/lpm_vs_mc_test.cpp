@@ -24,10 +24,11 @@ TEST_P(LpmVsMc, DefaultSettingsWithinPinnedError) {
     const int samples = c.g >= 0.7 ? 40000 : 12000;
     const double tMc = secondsOf([&] { mc = mcVoxelSH(s.medium, s.lights, sampleVoxels(s.medium, 48), samples, 2); });
     const Comparison e = compare(r, mc);
-    std::printf("[ case ] %-18s band0 rms %.4f (MC noise %.4f, corrected %.4f, bias %+.4f)  bands1-2 %.4f (noise %.4f)"
-                "  LPM %.2f s, %d passes  MC %.2f s\n",
-                c.name.c_str(), e.band0Rms, e.band0Noise, e.band0Corrected(), e.band0Bias, e.band12Rms, e.band12Noise,
-                tLpm, int(r.passes.size()), tMc);
+    std::printf(
+        "[ case ] %-18s band0 rms %.4f (MC noise %.4f, corrected %.4f, bias %+.4f)  bands1-2 %.4f (noise %.4f)"
+        "  LPM %.2f s, %d passes  MC %.2f s\n",
+        c.name.c_str(), e.band0Rms, e.band0Noise, e.band0Corrected(), e.band0Bias, e.band12Rms, e.band12Noise, tLpm,
+        int(r.passes.size()), tMc);
     RecordProperty("band0_rms", std::to_string(e.band0Rms));
     // The MC estimate is precise enough to resolve the pinned errors.
     EXPECT_LT(e.band0Noise, 0.008);

@@ -167,9 +167,7 @@ TEST(McReference, DeterministicForAnyThreadCount) {
         const auto est = mcVoxelSH(m, lights, vox, 300, 1);
         std::vector<double> all;
         for (const auto& e : est) all.insert(all.end(), e.mean.begin(), e.mean.end());
-        if (ref.empty())
-            ref = all;
-        else
-            EXPECT_EQ(ref, all) << threads;
+        if (ref.empty()) ref = all;
+        else EXPECT_EQ(ref, all) << threads;
     }
 }

@@ -31,7 +31,8 @@ Medium twoBlobs(bool sparse) {
         for (int y = 0; y < n; ++y)
             for (int x = 0; x < n; ++x)
                 if (density(x, y, z) > 0)
-                    active[size_t(x / 8) + size_t(probe.tilesX()) * (size_t(y / 8) + size_t(probe.tilesY()) * (z / 8))] = 1;
+                    active[size_t(x / 8) +
+                           size_t(probe.tilesX()) * (size_t(y / 8) + size_t(probe.tilesY()) * (z / 8))] = 1;
     Medium m;
     m.allocate(n, n, n, sparse ? &active : nullptr, true);
     for (int z = 0; z < n; ++z)
@@ -89,7 +90,8 @@ TEST(Medium, SparseAndDenseSolvesAgree) {
                 const size_t vs = s.index(x, y, z), vd = d.index(x, y, z);
                 if (vs == Medium::npos || d.sigmaT[vd] <= 0) continue;
                 for (int k = 0; k < rs.coeffs; ++k)
-                    for (int c = 0; c < 3; ++c) ASSERT_EQ(rs.coeff(vs, k)[c], rd.coeff(vd, k)[c]) << x << "," << y << "," << z;
+                    for (int c = 0; c < 3; ++c)
+                        ASSERT_EQ(rs.coeff(vs, k)[c], rd.coeff(vd, k)[c]) << x << "," << y << "," << z;
                 ++compared;
             }
     EXPECT_GT(compared, 800u);

@@ -61,7 +61,8 @@ TEST(Multires, RestrictionKeepsSourcePowerPerBin) {
             double pf = 0, pc = 0;
             for (size_t v = 0; v < f.voxelCount(); ++v)
                 pf += double(f.sigmaT[v]) * src[(v * bins + d) * moments * 3 + ch] * f.voxelVolume();
-            for (size_t v = 0; v < c.voxelCount(); ++v) pc += double(c.sigmaT[v]) * uc[(v * bins + d) * 3 + ch] * c.voxelVolume();
+            for (size_t v = 0; v < c.voxelCount(); ++v)
+                pc += double(c.sigmaT[v]) * uc[(v * bins + d) * 3 + ch] * c.voxelVolume();
             EXPECT_NEAR(pc, pf, 1e-5 * pf) << "bin " << d << " channel " << ch;
         }
 }
@@ -76,8 +77,10 @@ TEST(Multires, InjectionKeepsCoarsePower) {
     injectCoarse(f, c, uc, bins, moments, out);
     for (int d = 0; d < bins; ++d) {
         double pf = 0, pc = 0;
-        for (size_t v = 0; v < f.voxelCount(); ++v) pf += double(f.sigmaT[v]) * out[(v * bins + d) * 3] * f.voxelVolume();
-        for (size_t v = 0; v < c.voxelCount(); ++v) pc += double(c.sigmaT[v]) * uc[(v * bins + d) * 3] * c.voxelVolume();
+        for (size_t v = 0; v < f.voxelCount(); ++v)
+            pf += double(f.sigmaT[v]) * out[(v * bins + d) * 3] * f.voxelVolume();
+        for (size_t v = 0; v < c.voxelCount(); ++v)
+            pc += double(c.sigmaT[v]) * uc[(v * bins + d) * 3] * c.voxelVolume();
         EXPECT_NEAR(pf, pc, 1e-5 * pc);
     }
     for (float x : out) EXPECT_GE(x, 0.0f);  // every fine voxel written (outside the block: 0)
@@ -159,7 +162,7 @@ TEST(Multires, CoarseGridSwitchesToGmresEarly) {
         }
     }
     const double rel = std::sqrt(num / den);
-    std::printf("coarse passes: %d with early GMRES, %d plain; band-0 relative RMS difference %.2e\n",
-                coarsePasses(re), coarsePasses(rp), rel);
+    std::printf("coarse passes: %d with early GMRES, %d plain; band-0 relative RMS difference %.2e\n", coarsePasses(re),
+                coarsePasses(rp), rel);
     EXPECT_LT(rel, early.tolerance);  // measured 2.4e-4
 }

@@ -53,7 +53,8 @@ TEST(PassRunner, IsotropicFoldEqualsGeneralFold) {
             EXPECT_NEAR(iso.out[v * 3 + c], general.out[v * 3 + c], 1e-5 * peak) << v;
             EXPECT_NEAR(iso.sh[v * 3 + c], general.sh[v * 12 + c], 1e-5 * peak) << v;
         }
-    for (int c = 0; c < 3; ++c) EXPECT_NEAR(iso.tally.scattered[c], general.tally.scattered[c], 1e-5 * general.tally.scattered[c]);
+    for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(iso.tally.scattered[c], general.tally.scattered[c], 1e-5 * general.tally.scattered[c]);
 }
 
 TEST(PassRunner, BatchesPartitionJobsByAxisAndSource) {

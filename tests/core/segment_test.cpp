@@ -47,7 +47,8 @@ TEST(Segment, PropagateMatchesTheTransportEquation) {
         double sigma, len, L0, qa, qb;
     };
     for (const Case& c : {Case{0.0, 1.0, 2.0, 0.0, 0.0}, Case{0.5, 1.0, 1.0, 0.3, 0.2}, Case{3.0, 0.7, 0.5, 2.0, -1.5},
-                          Case{20.0, 1.3, 4.0, 10.0, 8.0}, Case{1e-7, 2.0, 1.0, 1e-7, 3e-7}}) {
+                          Case{20.0, 1.3, 4.0, 10.0, 8.0}, Case{1e-7, 2.0, 1.0, 1e-7, 3e-7}})
+    {
         const SegmentFactors sf(c.sigma * c.len, c.len);
         double M0, M1;
         const double Lout = sf.propagate(c.L0, c.qa, c.qb, M0, M1);

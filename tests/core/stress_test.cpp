@@ -6,8 +6,8 @@
 
 #include <cmath>
 
-#include "core/lpm_solver.h"
 #include <cstdio>
+#include "core/lpm_solver.h"
 
 #include "lpm_vs_mc.h"
 

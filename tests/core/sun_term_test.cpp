@@ -115,7 +115,8 @@ TEST(SunTerm, SubdivisionAndDeltaMKeepTheTerm) {
         for (int x = 1; x <= 3; ++x) {
             const size_t v = m.index(x, y, x);
             EXPECT_NEAR(split.sunTerms[0].transmittance[v], plain.sunTerms[0].transmittance[v],
-                        0.01 * plain.sunTerms[0].transmittance[v]) << x << " " << y;
+                        0.01 * plain.sunTerms[0].transmittance[v])
+                << x << " " << y;
         }
     // Delta-M propagates a thinner medium: its beam reaches deeper than exp(-sigma_t s).
     const Medium thin = slab(6, 0.5, 2.0f, 0.0f, 0.85);

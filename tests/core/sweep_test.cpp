@@ -93,7 +93,8 @@ int expectMatchesReference(const Medium& m, const std::vector<Vec3>& dirs, std::
             for (bool withSrc : {false, true}) {
                 const Job job = makeJob(w, withSrc ? &src : nullptr, std::fmod(offset0 + step * cases, 1.0));
                 const Compare c = compareKernels(m, job, r);
-                EXPECT_LT(c.maxRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r << " src " << withSrc;
+                EXPECT_LT(c.maxRel, 2e-5)
+                    << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r << " src " << withSrc;
                 EXPECT_LT(c.tallyRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r;
                 ++cases;
             }
@@ -118,7 +119,7 @@ TEST(SweepKernel, ExpNegMatchesStdExp) {
 // Every direction family, oblique and axis-aligned directions, r = 1..3, boundary light
 // with and without a volume source, dense and sparse storage, non-cubic voxels.
 TEST(SweepKernel, MatchesReferenceSweep) {
-    const Vec3 dirs[] = {{1, 0, 0},      {0, -1, 0},       {0, 0, 1},     {0.9, 0.3, -0.2},  {-0.4, 1, 0.7},
+    const Vec3 dirs[] = {{1, 0, 0},       {0, -1, 0},      {0, 0, 1},     {0.9, 0.3, -0.2},   {-0.4, 1, 0.7},
                          {0.5, -0.5, -1}, {1, 0.999, 0.2}, {-1, -1, 1.0}, {0.05, 0.02, -1.0}, {1, 1e-9, 0}};
     int cases = 0;
     for (bool sparse : {false, true})
@@ -131,8 +132,8 @@ TEST(SweepKernel, MatchesReferenceSweep) {
                 for (bool withSrc : {false, true}) {
                     const Job job = makeJob(w, withSrc ? &src : nullptr, std::fmod(0.37 + 0.05 * cases, 1.0));
                     const Compare c = compareKernels(m, job, r);
-                    EXPECT_LT(c.maxRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r
-                                              << " sparse " << sparse << " src " << withSrc;
+                    EXPECT_LT(c.maxRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r << " sparse "
+                                              << sparse << " src " << withSrc;
                     EXPECT_LT(c.tallyRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r;
                     ++cases;
                 }
@@ -161,7 +162,8 @@ TEST(SweepKernel, EmptyTileLayersMatchReference) {
     for (float& x : m.sigmaT) x = float(2 * rng.uniform());
     std::vector<float> src(m.voxelCount() * 3);
     for (float& x : src) x = float(rng.uniform());
-    const std::vector<Vec3> dirs = {{1, 0.7, -0.4}, {-1, -0.3, 0.9}, {0.6, 1, 0.8}, {-0.2, -1, -0.95}, {0.9, -0.8, 1}, {0.3, 0.4, -1}};
+    const std::vector<Vec3> dirs = {{1, 0.7, -0.4},    {-1, -0.3, 0.9}, {0.6, 1, 0.8},
+                                    {-0.2, -1, -0.95}, {0.9, -0.8, 1},  {0.3, 0.4, -1}};
     EXPECT_EQ(expectMatchesReference(m, dirs, {1, 2, 3}, src, 0.11, 0.07), 36);
 }
 
@@ -178,10 +180,10 @@ TEST(SweepKernel, DistantBlobsMatchReference) {
     auto tile = [&](int tx, int ty, int tz) -> std::uint8_t& {
         return active[size_t(tx) + size_t(probe.tilesX()) * (size_t(ty) + size_t(probe.tilesY()) * tz)];
     };
-    tile(0, 0, 0) = tile(1, 0, 0) = tile(0, 1, 0) = 1;                                    // near corner
-    tile(probe.tilesX() - 1, probe.tilesY() - 1, probe.tilesZ() - 1) = 1;               // far corner
+    tile(0, 0, 0) = tile(1, 0, 0) = tile(0, 1, 0) = 1;                     // near corner
+    tile(probe.tilesX() - 1, probe.tilesY() - 1, probe.tilesZ() - 1) = 1;  // far corner
     tile(probe.tilesX() - 2, probe.tilesY() - 1, probe.tilesZ() - 1) = 1;
-    tile(probe.tilesX() - 1, 0, probe.tilesZ() / 2) = 1;                                // a third, off the diagonal
+    tile(probe.tilesX() - 1, 0, probe.tilesZ() / 2) = 1;  // a third, off the diagonal
     Medium m;
     m.voxelSize = {1, 1.1, 0.9};
     m.albedo = RGB(0.9f, 0.8f, 0.7f);
@@ -190,7 +192,8 @@ TEST(SweepKernel, DistantBlobsMatchReference) {
     for (float& x : m.sigmaT) x = float(0.5 * rng.uniform());
     std::vector<float> src(m.voxelCount() * 3);
     for (float& x : src) x = float(rng.uniform());
-    const std::vector<Vec3> dirs = {{1, 0.95, 0.9}, {-1, -0.9, -0.97}, {0.9, 1, 0.3}, {0.2, -0.6, 1}, {1, -0.99, 0.05}, {-0.7, 0.8, -1}};
+    const std::vector<Vec3> dirs = {{1, 0.95, 0.9}, {-1, -0.9, -0.97}, {0.9, 1, 0.3},
+                                    {0.2, -0.6, 1}, {1, -0.99, 0.05},  {-0.7, 0.8, -1}};
     EXPECT_EQ(expectMatchesReference(m, dirs, {1, 2}, src, 0.23, 0.13), 24);
 }
 
@@ -228,7 +231,8 @@ TEST(SweepKernel, SparseStorageEqualsDense) {
                 const size_t i = sp.index(x, y, z);
                 if (i == Medium::npos) continue;
                 for (int c = 0; c < 3; ++c)
-                    ASSERT_NEAR(a[i * 3 + c], b[dn.index(x, y, z) * 3 + c], 1e-5 * (1 + std::fabs(b[dn.index(x, y, z) * 3 + c])));
+                    ASSERT_NEAR(a[i * 3 + c], b[dn.index(x, y, z) * 3 + c],
+                                1e-5 * (1 + std::fabs(b[dn.index(x, y, z) * 3 + c])));
             }
     for (int c = 0; c < 3; ++c) {
         EXPECT_NEAR(ta.escaped[c], tb.escaped[c], 1e-6 * tb.injected[c]);
@@ -271,7 +275,8 @@ TEST(SweepKernel, BatchEqualsSumOfSweeps) {
                 sweepStepBatch(m, ptrs, 2, batch.data(), tb, perWeight);
                 double scale = 0, worst = 0;
                 for (float x : sum) scale = std::max(scale, double(std::fabs(x)));
-                for (size_t i = 0; i < N * 3; ++i) worst = std::max(worst, std::fabs(double(batch[i]) - sum[i]) / scale);
+                for (size_t i = 0; i < N * 3; ++i)
+                    worst = std::max(worst, std::fabs(double(batch[i]) - sum[i]) / scale);
                 EXPECT_LT(worst, 1e-5) << "layout " << layout << " axis " << axis << " src " << withSrc;
                 for (int c = 0; c < 3; ++c) {
                     const double inj = ts.injected[c];

@@ -21,7 +21,9 @@ inline Medium makeVolume(VolumeKind kind, int n, double tau, std::uint64_t seed 
     m.voxelSize = {h, h, h};
     m.sigmaT.assign(m.voxelCount(), 0.0f);
     Pcg32 rng(seed, 11);
-    struct Blob { double x, y, z, r, w; };
+    struct Blob {
+        double x, y, z, r, w;
+    };
     std::vector<Blob> blobs;
     const int nb = kind == VolumeKind::Cloud ? 24 : 12;
     for (int i = 0; i < nb; ++i) {
@@ -48,8 +50,8 @@ inline Medium makeVolume(VolumeKind kind, int n, double tau, std::uint64_t seed 
                     d = (r > 0.22 && r < 0.45) ? 1.0 + 0.5 * std::sin(20 * px) * std::cos(17 * pz) : 0.0;
                 } else {
                     for (const Blob& b : blobs) {
-                        const double q = ((px - b.x) * (px - b.x) + (py - b.y) * (py - b.y) + (pz - b.z) * (pz - b.z)) /
-                                         (b.r * b.r);
+                        const double q =
+                            ((px - b.x) * (px - b.x) + (py - b.y) * (py - b.y) + (pz - b.z) * (pz - b.z)) / (b.r * b.r);
                         d += b.w * std::exp(-q);
                     }
                     d = std::max(0.0, d - 0.15);  // hard-ish edges and empty space
@@ -94,7 +96,8 @@ inline void scaleToMaxOpticalDepth(Medium& m, double tau) {
 
 /// Exact voxel average of exp(-sigma * distance to the box boundary along `toward`) for a
 /// homogeneous box (independent of the solver: q^3 point quadrature, analytic distances).
-inline double boxTransmittanceAverage(const Medium& m, double sigma, int ix, int iy, int iz, const Vec3& toward, int q) {
+inline double boxTransmittanceAverage(const Medium& m, double sigma, int ix, int iy, int iz, const Vec3& toward,
+                                      int q) {
     double acc = 0;
     const double ext[3] = {m.nx * m.voxelSize.x, m.ny * m.voxelSize.y, m.nz * m.voxelSize.z};
     for (int a = 0; a < q; ++a)

@@ -62,7 +62,8 @@ TEST(AtomicOutput, RefusesInputsAndMissingDirectories) {
     lpmtest::expectThrowWith<OutputError>([&] { AtomicOutput a(dir + "/./in.vdb", {in}); }, {"input"});
     fs::create_hard_link(in, dir + "/link.vdb");
     lpmtest::expectThrowWith<OutputError>([&] { AtomicOutput a(dir + "/link.vdb", {in}); }, {"input"});
-    lpmtest::expectThrowWith<OutputError>([&] { AtomicOutput a(dir + "/nodir/x.vdb", {}); }, {"nodir", "does not exist"});
+    lpmtest::expectThrowWith<OutputError>([&] { AtomicOutput a(dir + "/nodir/x.vdb", {}); },
+                                          {"nodir", "does not exist"});
     EXPECT_EQ(slurp(in), "input");
 }
 

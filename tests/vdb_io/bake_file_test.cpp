@@ -49,13 +49,27 @@ openvdb::MetaMap shaderMetadata(int shOrder) {
     for (const MetaKey& k : bakeSchema()) {
         if (!k.required || !k.shader) continue;
         switch (k.type) {
-            case MetaType::String: putString(meta, k, ""); break;
-            case MetaType::Double: putDouble(meta, k, 1.0); break;
-            case MetaType::Int: putInt(meta, k, 0); break;
-            case MetaType::Int64: putInt64(meta, k, 0); break;
-            case MetaType::Bool: putBool(meta, k, false); break;
-            case MetaType::Vec3d: putVec3(meta, k, 0.5, 0.5, 0.5); break;
-            case MetaType::Vec3i: putVec3i(meta, k, 0, 0, 0); break;
+            case MetaType::String:
+                putString(meta, k, "");
+                break;
+            case MetaType::Double:
+                putDouble(meta, k, 1.0);
+                break;
+            case MetaType::Int:
+                putInt(meta, k, 0);
+                break;
+            case MetaType::Int64:
+                putInt64(meta, k, 0);
+                break;
+            case MetaType::Bool:
+                putBool(meta, k, false);
+                break;
+            case MetaType::Vec3d:
+                putVec3(meta, k, 0.5, 0.5, 0.5);
+                break;
+            case MetaType::Vec3i:
+                putVec3i(meta, k, 0, 0, 0);
+                break;
         }
     }
     putInt(meta, bakekey::formatVersion, kBakeFormatVersion);

@@ -40,8 +40,9 @@ TEST(EnvReader, DirectionCodedLatLong) {
     EXPECT_EQ(e.width, W);
     EXPECT_EQ(e.height, H);
     const double tol = 2 * kPi / H;  // one pixel of angle
-    for (const Vec3& d : {Vec3(1, 0, 0), Vec3(-1, 0, 0), Vec3(0, 0, 1), Vec3(0, 0, -1), Vec3(0, 1, 0),
-                          Vec3(0, -1, 0), normalize(Vec3(0.4, 0.5, -0.7)), normalize(Vec3(-0.8, -0.3, 0.2))}) {
+    for (const Vec3& d : {Vec3(1, 0, 0), Vec3(-1, 0, 0), Vec3(0, 0, 1), Vec3(0, 0, -1), Vec3(0, 1, 0), Vec3(0, -1, 0),
+                          normalize(Vec3(0.4, 0.5, -0.7)), normalize(Vec3(-0.8, -0.3, 0.2))})
+    {
         const RGB c = e.env->lookup(d);
         EXPECT_NEAR(c.r - 1, d.x, tol) << d.x << "," << d.y << "," << d.z;
         EXPECT_NEAR(c.g - 1, d.y, tol);
@@ -69,12 +70,19 @@ TEST(EnvReader, OrientationLatLongExr) {
     ASSERT_TRUE(in);
     std::vector<float> raw(1024 * 512 * 4);
     ASSERT_TRUE(in->read_image(0, 0, 0, 4, OIIO::TypeDesc::FLOAT, raw.data()));
-    auto rawAt = [&](int x, int y) { return RGB(raw[(y * 1024 + x) * 4], raw[(y * 1024 + x) * 4 + 1], raw[(y * 1024 + x) * 4 + 2]); };
-    struct Probe { Vec3 d; int x, y; };
+    auto rawAt = [&](int x, int y) {
+        return RGB(raw[(y * 1024 + x) * 4], raw[(y * 1024 + x) * 4 + 1], raw[(y * 1024 + x) * 4 + 2]);
+    };
+    struct Probe {
+        Vec3 d;
+        int x, y;
+    };
     // Directions slightly off the pixel boundaries so the pixel is unambiguous: u = 1/4 + e
     // is column 256, v = 1/2 - e is row 255.
-    for (const Probe& p : {Probe{normalize(Vec3(1, 0.001, 0.001)), 256, 255}, Probe{normalize(Vec3(-0.001, 0.001, 1)), 512, 255},
-                           Probe{normalize(Vec3(-1, 0.001, -0.001)), 768, 255}, Probe{Vec3(0, 1, 0), 512, 0}}) {
+    for (const Probe& p :
+         {Probe{normalize(Vec3(1, 0.001, 0.001)), 256, 255}, Probe{normalize(Vec3(-0.001, 0.001, 1)), 512, 255},
+          Probe{normalize(Vec3(-1, 0.001, -0.001)), 768, 255}, Probe{Vec3(0, 1, 0), 512, 0}})
+    {
         const RGB a = e.env->lookup(p.d), b = rawAt(p.x, p.y);
         for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(a[c], std::max(0.f, b[c])) << "pixel " << p.x << "," << p.y;
     }
@@ -84,7 +92,8 @@ TEST(EnvReader, NanInfPixelsAndSizeChecks) {
     const std::string dir = lpmtest::scratchDir();
     const std::string path = dataPath("env/BrightRingsNanInf.exr");
     EnvReadOptions o = identity(path);
-    expectThrowWith<InputError>([&] { readEnvironment(o); }, {"BrightRingsNanInf.exr", "NaN or infinite", "--sanitize"});
+    expectThrowWith<InputError>([&] { readEnvironment(o); },
+                                {"BrightRingsNanInf.exr", "NaN or infinite", "--sanitize"});
     o.sanitize = true;  // pixels fixed, but the image is square: not a lat-long
     expectThrowWith<InputError>([&] { readEnvironment(o); }, {"800x800", "lat-long", "2 x height"});
 
@@ -217,7 +226,8 @@ TEST(EnvReader, TruncatedFlippedAndForeignFiles) {
 
         int refusedCuts = 0;
         for (size_t cut : {size_t(0), size_t(1), size_t(10), size_t(100), bytes.size() / 4, bytes.size() / 2,
-                           bytes.size() * 9 / 10, bytes.size() - 100, bytes.size() - 1}) {
+                           bytes.size() * 9 / 10, bytes.size() - 100, bytes.size() - 1})
+        {
             SCOPED_TRACE("cut at byte " + std::to_string(cut));
             const std::string path = dir + "/cut" + std::to_string(cut) + s.ext;
             lpmtest::writeBytes(path, bytes.substr(0, cut));

@@ -47,7 +47,8 @@ openvdb::FloatGrid::Ptr lumpyGrid() {
             for (int x = -7; x <= 5; ++x) {
                 const double r2 = (x + 1) * (x + 1) / 36.0 + (y - 3) * (y - 3) / 36.0 + (z - 1) * (z - 1) / 49.0;
                 if (r2 > 1) continue;
-                g->tree().setValue(openvdb::Coord(x, y, z), float(1.5 + std::sin(0.7 * x + 1.3 * y) * std::cos(0.5 * z)));
+                g->tree().setValue(openvdb::Coord(x, y, z),
+                                   float(1.5 + std::sin(0.7 * x + 1.3 * y) * std::cos(0.5 * z)));
             }
     return g;
 }
@@ -80,9 +81,8 @@ TEST(SolveScale, GridPlacement) {
         }
         for (int i = 0; i < 9; ++i) EXPECT_NEAR(m.localToWorld.m[i], ref.medium.localToWorld.m[i], 1e-12);
         const openvdb::Coord bmin = g->evalActiveVoxelBoundingBox().min();
-        const openvdb::Vec3d c = g->transform().indexToWorld(openvdb::Vec3d(bmin.x() - 0.5 - pad / S,
-                                                                             bmin.y() - 0.5 - pad / S,
-                                                                             bmin.z() - 0.5 - pad / S));
+        const openvdb::Vec3d c = g->transform().indexToWorld(
+            openvdb::Vec3d(bmin.x() - 0.5 - pad / S, bmin.y() - 0.5 - pad / S, bmin.z() - 0.5 - pad / S));
         EXPECT_NEAR(m.origin.x, c.x(), 1e-9);
         EXPECT_NEAR(m.origin.y, c.y(), 1e-9);
         EXPECT_NEAR(m.origin.z, c.z(), 1e-9);
@@ -162,9 +162,9 @@ TEST(SolveScale, EmissionResampled) {
     const Medium& m = v.medium;
     ASSERT_EQ(m.nx, 4 + 2);
     ASSERT_TRUE(m.hasEmission());
-    EXPECT_FLOAT_EQ(m.emission[m.index(2, 2, 2)].g, 2.f);  // input voxels 2..3 on each axis
-    EXPECT_FLOAT_EQ(m.emission[m.index(1, 2, 4)].r, 2.f);  // input voxels 0..1 / 6..7: the surface
-    EXPECT_FLOAT_EQ(m.emission[m.index(0, 2, 2)].r, 0.f);  // padding
+    EXPECT_FLOAT_EQ(m.emission[m.index(2, 2, 2)].g, 2.f);        // input voxels 2..3 on each axis
+    EXPECT_FLOAT_EQ(m.emission[m.index(1, 2, 4)].r, 2.f);        // input voxels 0..1 / 6..7: the surface
+    EXPECT_FLOAT_EQ(m.emission[m.index(0, 2, 2)].r, 0.f);        // padding
     for (float s : m.sigmaT) EXPECT_TRUE(s == 0.f || s == 1.f);  // whole input voxels: exact means
     // S = 0.3: 4^3 sub-samples; inside the cube still the constant, and finite, >= 0 everywhere.
     o.solveScale = 0.3;
@@ -181,13 +181,22 @@ TEST(SolveScale, MaxVoxelsAppliesToTheSolveBlock) {
     VolumeInput v;
     EXPECT_NO_THROW(gridToMedium(*g, o, v));
     o.solveScale = 2;  // 20 + 2 x 2 pad = 24^3 does not
-    lpmtest::expectThrowWith<InputError>([&] { VolumeInput w; gridToMedium(*g, o, w); },
-                                         {"24x24x24 = 13824", "--max-voxels", "smaller --solve-scale"});
+    lpmtest::expectThrowWith<InputError>(
+        [&] {
+            VolumeInput w;
+            gridToMedium(*g, o, w);
+        },
+        {"24x24x24 = 13824", "--max-voxels", "smaller --solve-scale"});
     // A huge S on a huge extent is refused, not overflowed.
     auto big = lpmtest::cubeGrid(2, 1.f);
     big->tree().setValueOn(openvdb::Coord(1 << 28, 0, 0), 1.f);
     o.solveScale = 8;
-    lpmtest::expectThrowWith<InputError>([&] { VolumeInput w; gridToMedium(*big, o, w); }, {"--max-voxels"});
+    lpmtest::expectThrowWith<InputError>(
+        [&] {
+            VolumeInput w;
+            gridToMedium(*big, o, w);
+        },
+        {"--max-voxels"});
 }
 
 // Mapping back: the dense values are interpolated trilinearly at the input voxel centres,
@@ -235,7 +244,8 @@ TEST(SolveScale, WriteInterpolatesTrilinearly) {
     for (int z = 0; z < 6; ++z)
         for (int y = 0; y < 6; ++y)
             for (int x = 0; x < 5; ++x)
-                for (int c = 0; c < 3; ++c) sh5[size_t(x + 5 * (y + 6 * z)) * 3 + c] = sh[size_t(x + 6 * (y + 6 * z)) * 3 + c];
+                for (int c = 0; c < 3; ++c)
+                    sh5[size_t(x + 5 * (y + 6 * z)) * 3 + c] = sh[size_t(x + 6 * (y + 6 * z)) * 3 + c];
     b.sh = sh5.data();
     rep = writeBake(*density, b, openvdb::MetaMap(), wo);
     const BakeFile f5 = readBakeFile(wo.path);

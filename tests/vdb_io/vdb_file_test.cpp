@@ -23,10 +23,10 @@ openvdb::FloatGrid::Ptr mixedFloatGrid() {
     auto acc = g->getAccessor();
     for (int i = 0; i < 40; ++i)
         for (int j = 0; j < 20; ++j) acc.setValue(openvdb::Coord(i, j, (i * 7 + j * 3) % 30), float(i + j) * 0.25f);
-    acc.setValueOff(openvdb::Coord(1, 1, 1), 7.f);     // one non-background inactive value
-    acc.setValueOff(openvdb::Coord(9, 0, 0), -0.5f);   // -background
-    acc.setValueOff(openvdb::Coord(17, 2, 5), 3.f);    // a second inactive value
-    acc.setValueOff(openvdb::Coord(18, 2, 5), -9.f);   // and a third (no mask compression)
+    acc.setValueOff(openvdb::Coord(1, 1, 1), 7.f);              // one non-background inactive value
+    acc.setValueOff(openvdb::Coord(9, 0, 0), -0.5f);            // -background
+    acc.setValueOff(openvdb::Coord(17, 2, 5), 3.f);             // a second inactive value
+    acc.setValueOff(openvdb::Coord(18, 2, 5), -9.f);            // and a third (no mask compression)
     g->tree().addTile(1, openvdb::Coord(64, 0, 0), 2.f, true);  // an active tile
     return g;
 }
@@ -77,9 +77,10 @@ TEST(VdbFile, EveryCompressionHalfAndValueTypeReadsBack) {
     using openvdb::io::COMPRESS_BLOSC;
     using openvdb::io::COMPRESS_NONE;
     using openvdb::io::COMPRESS_ZIP;
-    for (std::uint32_t comp : std::vector<std::uint32_t>{COMPRESS_NONE, COMPRESS_ZIP, COMPRESS_BLOSC,
-                                                         COMPRESS_ACTIVE_MASK, COMPRESS_ZIP | COMPRESS_ACTIVE_MASK,
-                                                         COMPRESS_BLOSC | COMPRESS_ACTIVE_MASK}) {
+    for (std::uint32_t comp :
+         std::vector<std::uint32_t>{COMPRESS_NONE, COMPRESS_ZIP, COMPRESS_BLOSC, COMPRESS_ACTIVE_MASK,
+                                    COMPRESS_ZIP | COMPRESS_ACTIVE_MASK, COMPRESS_BLOSC | COMPRESS_ACTIVE_MASK})
+    {
         for (bool half : {false, true}) {
             SCOPED_TRACE("compression " + std::to_string(comp) + (half ? ", half" : ""));
             auto f = mixedFloatGrid();
@@ -141,15 +142,19 @@ TEST(VdbFile, LayoutCheckNamesEachCorruptField) {
         // The grid name's length says 2 GB.
         {"name_length", patched(good, type - 4 - 17 - 4, 0x7FFFFFFFu, 4), {"corrupt", "a grid name", "2147483647"}},
         // The end offset lies past the end of the file; the block offset before the grid's.
-        {"end_offset", patched(good, offsets + 16, std::uint64_t(good.size()) + 1, 8), {"truncated", "voxel_fog_density"}},
+        {"end_offset",
+         patched(good, offsets + 16, std::uint64_t(good.size()) + 1, 8),
+         {"truncated", "voxel_fog_density"}},
         {"block_offset", patched(good, offsets + 8, 1, 8), {"corrupt", "byte offsets"}},
         // The grid's first metadata name length (after its compression flags and the
         // metadata count) runs past the grid's metadata part.
-        {"grid_meta", patched(good, size_t(gridPos) + 8, 0x00FFFFFFu, 4),
+        {"grid_meta",
+         patched(good, size_t(gridPos) + 8, 0x00FFFFFFu, 4),
          {"corrupt", "the metadata of grid 'voxel_fog_density'", "past the end of its part"}},
         // The grid's first metadata entry is '_bifrost_volume_index' (int32): its byte count
         // must be 4, since OpenVDB reads 4 bytes whatever it says.
-        {"typed_meta", patched(good, size_t(gridPos) + 4 + 4 + 4 + 21 + 4 + 5, 1000, 4),
+        {"typed_meta",
+         patched(good, size_t(gridPos) + 4 + 4 + 4 + 21 + 4 + 5, 1000, 4),
          {"corrupt", "'_bifrost_volume_index' (int32)", "says 1000 bytes; the type has 4"}},
         // Layouts the walk does not know are refused by name: a streamed file (no grid
         // offsets: byte 20) and a pre-3.0 format version (bytes 8-11).
@@ -197,13 +202,16 @@ TEST(VdbFile, CorruptChunkLengthsAreRefusedBeforeOpenVdbReadsThem) {
     const std::vector<Corruption> cases = {
         // Stored (negative length) but longer than the leaf's 2048 bytes: OpenVDB 10 reads
         // it into the 2048-byte buffer first and checks afterwards (a heap overflow).
-        {"stored_too_long", patched(good, lengthAt, -2048 - 4096, 8),
+        {"stored_too_long",
+         patched(good, lengthAt, -2048 - 4096, 8),
          {"grid 'density'", "stores 6144 bytes where 2048 are expected"}},
         // A compressed length far beyond the file: OpenVDB allocates it.
-        {"huge_length", patched(good, lengthAt, std::int64_t(1) << 40, 8),
+        {"huge_length",
+         patched(good, lengthAt, std::int64_t(1) << 40, 8),
          {"grid 'density'", "compressed chunk", "needs 1099511627776 bytes"}},
         // Blosc's own header disagrees with the chunk length: Blosc would read past it.
-        {"blosc_header", patched(good, lengthAt + 8 + 12, std::int64_t(cbytes) + 5000, 4),
+        {"blosc_header",
+         patched(good, lengthAt + 8 + 12, std::int64_t(cbytes) + 5000, 4),
          {"grid 'density'", "Blosc chunk", "says it holds"}},
     };
     expectEachRefused(dir, cases, [](const std::string& path) {
@@ -235,7 +243,8 @@ TEST(VdbFile, HalfFloatFlagIsDecidedAsOpenVdbDecidesIt) {
     const std::string flag = std::string("is_saved_as_half_float") + std::string("\x04\0\0\0bool\x01\0\0\0", 12);
     for (const std::uint32_t comp : std::vector<std::uint32_t>{
              openvdb::io::COMPRESS_NONE, openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK,
-          openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK}) {
+             openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK})
+    {
         SCOPED_TRACE("compression " + std::to_string(comp));
         const openvdb::FloatGrid::Ptr g = mixedFloatGrid();
         g->setSaveFloatAsHalf(false);  // writes the metadata entry, as Houdini's files have it
@@ -244,7 +253,8 @@ TEST(VdbFile, HalfFloatFlagIsDecidedAsOpenVdbDecidesIt) {
         out.setCompression(comp);
         out.write(openvdb::GridPtrVec{g});
         out.close();
-        EXPECT_DOUBLE_EQ(checksum(*openvdb::gridPtrCast<openvdb::FloatGrid>(VdbFile(path).readGrid("f"))), checksum(*g));
+        EXPECT_DOUBLE_EQ(checksum(*openvdb::gridPtrCast<openvdb::FloatGrid>(VdbFile(path).readGrid("f"))),
+                         checksum(*g));
 
         std::string bytes = lpmtest::readBytes(path);
         const size_t at = bytes.find(flag);

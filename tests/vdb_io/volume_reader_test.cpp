@@ -91,7 +91,7 @@ TEST(VolumeReader, MemoryFollowsActiveTilesNotTheBoundingBox) {
     double optical = 0;
     for (float s : m.sigmaT) optical += s;
     EXPECT_NEAR(optical, 125 * 0.5 + 125 * 0.25, 1e-4);
-    EXPECT_FLOAT_EQ(m.sigmaT[m.index(1 + 2, 1 + 2, 1 + 2)], 0.5f);      // index (2,2,2), pad 1
+    EXPECT_FLOAT_EQ(m.sigmaT[m.index(1 + 2, 1 + 2, 1 + 2)], 0.5f);  // index (2,2,2), pad 1
     EXPECT_EQ(m.index(150, 150, 150), Medium::npos);
     EXPECT_NO_THROW(m.validate());
 }
