@@ -139,6 +139,7 @@ CONVENTIONS
   space. Irradiance is measured on a plane facing the sun, in the working colour space.
   Environment: lat-long (width = 2 x height), OpenEXR ImfEnvmap orientation with +Y up:
   the image centre looks toward +Z, a quarter from the left toward +X, the top row is +Y.
+  --up-axis z (Blender, Mantaflow) turns it: the top row is +Z, the centre faces -Y.
   Units: sigma_t = density * --density-scale per world unit of the grid transform;
   voxel centres are at integer index coordinates. S is radiance in the working colour
   space (default ACEScg). Emission: --emission-grid values * --emission-scale are the

@@ -6,7 +6,8 @@
 //                      sigma_a = (1 - albedo) sigma_t; L_e the baked emission, if any)
 // A renderer then shades with absorption = extinction (its "density") and emission =
 // source, stock nodes only; only the directional part (g != 0, the SH and sun terms) needs
-// the metadata. Both grids hold the density's active voxels (tiles voxelised).
+// the metadata. `extinction` holds the density's active voxels (tiles voxelised); `source`
+// the lighting grids' voxels (the density's plus the one-voxel shell, where it is 0).
 #pragma once
 
 #include <openvdb/openvdb.h>

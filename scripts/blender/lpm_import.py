@@ -7,7 +7,7 @@ Command line (an empty scene is built; nothing is saved unless --save-blend is g
         [--render OUT.exr|OUT.png --camera-eye X,Y,Z --camera-target X,Y,Z
          [--camera-up X,Y,Z] [--fov-y DEG] [--size WxH] [--samples N] [--seed N]
          [--pixel-filter WIDTH] [--step-rate R] [--transparent]]
-        [--no-half-voxel-shift] [--save-blend FILE.blend]
+        [--material auto|constant-free] [--no-half-voxel-shift] [--save-blend FILE.blend]
 
 From Blender's Python console or another script:
 
@@ -28,6 +28,12 @@ What it builds (docs/renderers.md):
   plus sigma_a * L_e from the bake's `emission` grid when it has one (as `lpmbake render`);
   the result is converted from the bake's working colour space to Blender's scene linear
   (Linear Rec.709);
+* or, with --material constant-free (import_bake(..., material="constant-free")), for a
+  bake made with `lpmbake --renderer-grids`: Attribute `extinction` into the Volume
+  Absorption's density and Attribute `source` (sigma_s * scatter + sigma_a * L_e) into the
+  Emission, through the same colour conversion, and no number from the sidecar in the
+  node tree (for g = 0 bakes: it interpolates sigma_s * S as one grid, so it is close to,
+  not equal to, the material above; for g != 0 `source` is the direction average of S);
 * with an environment: a world with the environment in lpmbake's orientation (lat-long,
   OpenEXR ImfEnvmap convention, +Y up, or +Z up for lpm:up_axis z, turned by
   lpm:env_rotate_y_deg, scaled by lpm:env_scale); without one a black world;
@@ -130,10 +136,9 @@ class BakeParams:
         if self.format_version > 2:
             _log("warning: %s: lpm:format_version %d is newer than this script knows (2)" %
                  (where, self.format_version))
+        self.where = where
         self.density_grid = meta.get("lpm:density_grid", "density")
-        if not self.density_grid:
-            raise LpmError(2, "%s: the bake has no density grid (baked with --no-density); "
-                              "nothing to render" % where)
+        self.renderer_grids = meta.get("lpm:renderer_grids") is True
         self.density_scale = num("lpm:density_scale", 1.0)
         self.albedo = vec3("lpm:albedo", [0.9, 0.9, 0.9])
         self.g = num("lpm:g", 0.0)
@@ -175,7 +180,16 @@ class BakeParams:
         """Isotropic S: the `scatter` grid holds it whole (sun terms included)."""
         return self.sh_order == 0 and (not self.suns or self.sun_term_g == 0)
 
-    def needed_grids(self):
+    def needed_grids(self, material="auto"):
+        if material == "constant-free":
+            if not self.renderer_grids:
+                raise LpmError(2, "%s has no \"lpm:renderer_grids\": true: --material constant-free "
+                                  "needs a bake made with `lpmbake ... --renderer-grids`" % self.where)
+            return ["extinction", "source"]
+        if not self.density_grid:
+            raise LpmError(2, "%s: the bake has no density grid (baked with --no-density); "
+                              "nothing to render%s" % (self.where, " (it has renderer grids: use --material "
+                                                       "constant-free)" if self.renderer_grids else ""))
         grids = [self.density_grid] + (["emission"] if self.has_emission else [])
         if self.uses_scatter_grid():
             grids.append("scatter")
@@ -339,14 +353,53 @@ def _sh_basis(nb, w, order):
     return ys
 
 
-def build_material(params, name="lpm_bake"):
-    """A material of stock nodes rendering the bake (see the module docstring)."""
+def _volume_shader(nb, out, sigma_t, emit, working_colorspace):
+    """Volume Absorption (density sigma_t) + Emission (colour emit, converted from the
+    working space to Linear Rec.709, strength 1) into the material output's Volume."""
+    tree = nb.tree
+    m = working_to_rec709(working_colorspace)
+    if m is not None:
+        emit = nb.matrix3(m, emit)
+    emission = nb.node("ShaderNodeEmission")
+    tree.links.new(emit, emission.inputs["Color"])
+    emission.inputs["Strength"].default_value = 1.0
+
+    absorb = nb.node("ShaderNodeVolumeAbsorption")
+    absorb.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)   # sigma_a = (1 - colour) * density
+    tree.links.new(sigma_t, absorb.inputs["Density"])
+    add = nb.node("ShaderNodeAddShader")
+    tree.links.new(absorb.outputs[0], add.inputs[0])
+    tree.links.new(emission.outputs[0], add.inputs[1])
+    tree.links.new(add.outputs[0], out.inputs["Volume"])
+
+
+def _new_material(name):
     mat = bpy.data.materials.new(name)
     mat.use_nodes = True
     tree = mat.node_tree
     tree.nodes.clear()
     nb = _Nodes(tree)
     out = nb.node("ShaderNodeOutputMaterial", target="ALL")
+    mat.cycles.volume_interpolation = "LINEAR"    # trilinear: the lighting shell covers it
+    mat.cycles.homogeneous_volume = False
+    return mat, nb, out
+
+
+def build_constant_free_material(params, name="lpm_bake"):
+    """The minimal material for a bake with renderer grids (--renderer-grids): Attribute
+    `extinction` (sigma_t) into Volume Absorption, Attribute `source` (sigma_s * scatter +
+    sigma_a * L_e) into an Emission of strength 1. Only the working colour space's name
+    is used (for the conversion to Linear Rec.709): no number from the sidecar."""
+    mat, nb, out = _new_material(name)
+    _volume_shader(nb, out, nb.attribute("extinction", "Fac"), nb.attribute("source", "Vector"),
+                   params.working_colorspace)
+    return mat
+
+
+def build_material(params, name="lpm_bake"):
+    """A material of stock nodes rendering the bake (see the module docstring)."""
+    mat, nb, out = _new_material(name)
+    tree = nb.tree
 
     density = nb.attribute(params.density_grid, "Fac")
     sigma_t = nb.mul(density, params.density_scale)
@@ -382,23 +435,7 @@ def build_material(params, name="lpm_bake"):
         le = nb.attribute("emission", "Vector")
         absorbed = tuple(1.0 - a for a in params.albedo)
         emit = nb.vadd(emit, nb.vscale(nb.vmath("MULTIPLY", le, absorbed), sigma_t))
-    m = working_to_rec709(params.working_colorspace)
-    if m is not None:
-        emit = nb.matrix3(m, emit)
-    emission = nb.node("ShaderNodeEmission")
-    tree.links.new(emit, emission.inputs["Color"])
-    emission.inputs["Strength"].default_value = 1.0
-
-    absorb = nb.node("ShaderNodeVolumeAbsorption")
-    absorb.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)   # sigma_a = (1 - colour) * density
-    tree.links.new(sigma_t, absorb.inputs["Density"])
-    add = nb.node("ShaderNodeAddShader")
-    tree.links.new(absorb.outputs[0], add.inputs[0])
-    tree.links.new(emission.outputs[0], add.inputs[1])
-    tree.links.new(add.outputs[0], out.inputs["Volume"])
-
-    mat.cycles.volume_interpolation = "LINEAR"    # trilinear: the lighting shell covers it
-    mat.cycles.homogeneous_volume = False
+    _volume_shader(nb, out, sigma_t, emit, params.working_colorspace)
     return mat
 
 
@@ -481,8 +518,11 @@ def setup_world(scene, params, env_path=None, env_colorspace=None, rotation=None
 # Import
 # ---------------------------------------------------------------------------------------
 
+MATERIALS = ("auto", "constant-free")
+
+
 def import_bake(path, sidecar=None, env=None, scene=None, world=True, name=None,
-                half_voxel_shift=True, matrix=None, env_colorspace=None):
+                half_voxel_shift=True, matrix=None, env_colorspace=None, material="auto"):
     """Import bake `path` into `scene` (default: the current one) and return the object.
 
     sidecar: the bake's JSON sidecar (default: path with .json).  env: environment image
@@ -490,8 +530,13 @@ def import_bake(path, sidecar=None, env=None, scene=None, world=True, name=None,
     world alone; env_colorspace: see setup_world).  matrix: the object's placement
     (default identity: the VDB's world coordinates as they are); the world's environment
     turns with its rotation.  half_voxel_shift: move by -0.5 voxel to undo Blender 3.4's
-    half-voxel placement.
+    half-voxel placement.  material: "auto" (density x lpm:density_scale, albedo, the
+    `scatter` grid or the SH and sun terms from the sidecar) or "constant-free" (the
+    renderer grids `extinction` and `source` of a bake made with --renderer-grids, no
+    number from the sidecar; for g = 0 bakes, close to "auto": docs/renderers.md).
     """
+    if material not in MATERIALS:
+        raise LpmError(1, "material '%s' is not one of %s" % (material, ", ".join(MATERIALS)))
     scene = scene or bpy.context.scene
     path = os.path.abspath(bpy.path.abspath(path))
     if not os.path.isfile(path):
@@ -501,6 +546,11 @@ def import_bake(path, sidecar=None, env=None, scene=None, world=True, name=None,
     params = BakeParams(data["metadata"], "sidecar '%s'" % sidecar)
     if data.get("bake") and data["bake"] != os.path.basename(path):
         _log("warning: sidecar '%s' describes '%s', not '%s'" % (sidecar, data["bake"], os.path.basename(path)))
+    needed = params.needed_grids(material)
+    constant_free = material == "constant-free"
+    if constant_free and (params.g != 0 or (params.suns and params.sun_term_g != 0)):
+        _log("warning: '%s' has g = %g: `source` is the direction average of S, exact only for "
+             "g = 0 (--material auto evaluates the SH and sun terms at -view)" % (path, params.g))
 
     name = name or os.path.splitext(os.path.basename(path))[0]
     vol = bpy.data.volumes.new(name)
@@ -514,21 +564,25 @@ def import_bake(path, sidecar=None, env=None, scene=None, world=True, name=None,
         bpy.data.volumes.remove(vol)
         raise LpmError(2, "sidecar '%s' lists grids %s but '%s' holds %s (sidecar of another bake?)" %
                        (sidecar, sorted(data["grids"]), path, sorted(have)))
-    for g in params.needed_grids():
+    for g in needed:
         if g not in have:
             bpy.data.volumes.remove(vol)
             raise LpmError(2, "'%s' has no grid '%s' (grids: %s)" % (path, g, ", ".join(sorted(have))))
-    dens = have[params.density_grid]
+    dens_name = "extinction" if constant_free else params.density_grid
+    dens = have[dens_name]
     if dens.data_type != "FLOAT":
         bpy.data.volumes.remove(vol)
-        raise LpmError(2, "grid '%s' of '%s' is %s, not a float grid" % (params.density_grid, path, dens.data_type))
+        raise LpmError(2, "grid '%s' of '%s' is %s, not a float grid" % (dens_name, path, dens.data_type))
+    if constant_free and have["source"].data_type != "VECTOR_FLOAT":
+        bpy.data.volumes.remove(vol)
+        raise LpmError(2, "grid 'source' of '%s' is %s, not a Vec3f grid" % (path, have["source"].data_type))
     index_to_object = dens.matrix_object.copy()
 
     vol.render.precision = "FULL"        # Cycles stores grids as half floats by default
     vol.render.clipping = 0.0            # no voxel of the footprint is dropped
     vol.render.space = "OBJECT"
     vol.render.step_size = 0.0           # automatic: the voxel size
-    vol.materials.append(build_material(params, name + "_lpm"))
+    vol.materials.append((build_constant_free_material if constant_free else build_material)(params, name + "_lpm"))
 
     obj = bpy.data.objects.new(name, vol)
     scene.collection.objects.link(obj)
@@ -543,11 +597,16 @@ def import_bake(path, sidecar=None, env=None, scene=None, world=True, name=None,
     obj["lpm_sidecar"] = sidecar
     obj["lpm_half_voxel_shift"] = bool(half_voxel_shift)
     obj["lpm_up_axis"] = params.up_axis
+    obj["lpm_material"] = material
     if world:
         setup_world(scene, params, env, env_colorspace, rotation=place.to_quaternion().to_matrix())
-    _log("imported '%s': %s, SH order %d, %d exact sun term(s), up axis %s, working space %s" %
-         (path, "scatter grid" if params.uses_scatter_grid() else "SH at -view",
-          params.sh_order, len(params.suns), params.up_axis, params.working_colorspace))
+    if constant_free:
+        _log("imported '%s': renderer grids extinction and source (constant-free), up axis %s, "
+             "working space %s" % (path, params.up_axis, params.working_colorspace))
+    else:
+        _log("imported '%s': %s, SH order %d, %d exact sun term(s), up axis %s, working space %s" %
+             (path, "scatter grid" if params.uses_scatter_grid() else "SH at -view",
+              params.sh_order, len(params.suns), params.up_axis, params.working_colorspace))
     return obj
 
 
@@ -706,6 +765,9 @@ def parse_args(argv):
                    help="Blackman-Harris width in pixels (0.01: one ray through the pixel centre, as lpmbake render)")
     p.add_argument("--step-rate", type=float, default=0.5, help="volume step in voxels")
     p.add_argument("--transparent", action="store_true", help="transparent film: alpha = 1 - transmittance")
+    p.add_argument("--material", choices=MATERIALS, default="auto",
+                   help="auto: density, albedo, scatter or SH and sun terms with the sidecar's numbers; "
+                        "constant-free: the renderer grids extinction and source (bake with --renderer-grids)")
     p.add_argument("--no-half-voxel-shift", action="store_true")
     p.add_argument("--save-blend")
     # Values such as -30,-50,-300 look like options to argparse: glue them to their option.
@@ -733,7 +795,8 @@ def main(argv):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     obj = import_bake(a.bake, sidecar=a.sidecar, env=a.env, scene=scene,
-                      half_voxel_shift=not a.no_half_voxel_shift, env_colorspace=a.env_colorspace)
+                      half_voxel_shift=not a.no_half_voxel_shift, env_colorspace=a.env_colorspace,
+                      material=a.material)
     if a.render:
         up = a.camera_up
         if up is None:

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Checks scripts/blender/lpm_import.py (docs/renderers.md): bakes data/vdb/densityAndHeat.vdb
-# (23x23x42 non-cubic voxels, lit by data/env/rooftop_small.hdr and a sun) three ways, renders
+# (23x23x42 non-cubic voxels, lit by data/env/rooftop_small.hdr and a sun) four ways, renders
 # each bake with `lpmbake render` and with Blender 3.4 Cycles through the script (same camera,
 # 96x96, one ray through each pixel centre, 16 samples), and compares them per 4x4 block
 # where the volume covers at least 10% (tests/blender/exr_tool.py):
@@ -9,15 +9,19 @@
 #   B  g = 0.6, SH order 2 + exact sun term, ACEScg working space (default), env rotated
 #      and scaled: the SH-at--view path, the sun term, the colour conversion to Rec.709
 #   C  g = 0.6, --sun-term off (SH order 2 carries everything), lin_rec709
+#   D  g = 0, --renderer-grids, density scale 2.5, albedo 0.95,0.7,0.4, rendered with
+#      --material constant-free (Attribute extinction and source only; the material is
+#      checked to hold no Math node and no density scale or albedo value)
 #
 # plus: the environment's orientation (Blender's world against lpmbake render's
 # background with data/env/OrientationLatLong.exr, for the z-up bake A and the y-up bake C
 # rotated by -60 degrees); that the comparison fails without the half-voxel shift; and
-# one-line errors with lpmbake's exit codes.
+# one-line errors with lpmbake's exit codes (also --material constant-free on a bake without
+# renderer grids).
 #
 #   tests/blender/blender_import_test.sh LPMBAKE SOURCE_DIR [SCRATCH_DIR]
 #
-# Exit 77 (skipped) without `blender` on PATH. About 60 s on 2 cores.
+# Exit 77 (skipped) without `blender` on PATH. About 70 s on 2 cores.
 set -euo pipefail
 NAME=blender_import_test
 [ $# -ge 2 ] || { echo "usage: $0 LPMBAKE SOURCE_DIR [SCRATCH_DIR]" >&2; exit 1; }
@@ -39,23 +43,36 @@ start=$SECONDS
 # 0.059, the view direction flipped 0.60, no sun term 0.23.
 MAX_MEAN=0.01; MAX_BLOCK=0.03; MAX_ALPHA=0.01
 MAX_ENV_MEAN=0.002; MAX_ENV_BLOCK=0.01
+# Case D (constant-free, docs/renderers.md): Blender interpolates the product sigma_s S (the
+# `source` grid) trilinearly, `lpmbake render` multiplies the trilinear sigma_t and S (along
+# one axis they differ by t(1-t) d(sigma_s) dS per cell): measured mean 0.024, p95 0.107,
+# worst block 0.19, alpha 0.0024 (with `source` on the density's voxels only, before it got
+# the lighting shell, 0.034 / 0.106 / 0.86); the `auto` material on the same bake 0.0017 /
+# 0.005 / 0.014. A source without sigma_s gives mean 44, without the density scale 0.60,
+# without the albedo 0.40, sigma_s applied twice 0.79.
+MAX_D_MEAN=0.04; MAX_D_P95=0.15; MAX_D_BLOCK=0.3
 
 blend() { blender -b --factory-startup --python "$SCRIPT" -- "$@"; }
 tool() { blender -b --factory-startup --python "$TOOL" -- "$@" 2>&1 | grep -E "^($NAME|exr_tool)" || true; }
 EYE=28,-30,12; TARGET=0.3,0.3,8; UP=0,0,1; FOV=32; SIZE=96x96
 
-# bake CASE OPTIONS...: bake and write the sidecar.
+# bake CASE [--density-scale S] OPTIONS...: bake (density scale 2 unless given first) and
+# write the sidecar.
 bake() {
-  local c=$1; shift
-  "$LPMBAKE" "$VDB" --env "$SKY" --sun 0.3,0.8,0.5 --density-scale 2 -q "$@" \
+  local c=$1 ds=2; shift
+  if [ "${1:-}" = --density-scale ]; then ds=$2; shift 2; fi
+  "$LPMBAKE" "$VDB" --env "$SKY" --sun 0.3,0.8,0.5 --density-scale "$ds" -q "$@" \
     -o "$c.vdb" --sidecar "$c.json" || fail "$c: bake failed"
 }
 
-# volume CASE ENV_SCALE [COLOR_FROM]: lpmbake renders without and with a constant
-# environment (coverage), Blender with a transparent film; compare. COLOR_FROM: working
-# space of the bake, converted to lin_rec709 with oiiotool and data/config.ocio.
+# volume CASE ENV_SCALE [COLOR_FROM [MATERIAL [BOUNDS]]]: lpmbake renders without and with a
+# constant environment (coverage), Blender with a transparent film and --material MATERIAL
+# (auto); compare within BOUNDS (exr_tool options; default MAX_MEAN, MAX_BLOCK, MAX_ALPHA).
+# COLOR_FROM: working space of the bake, converted to lin_rec709 with oiiotool and
+# data/config.ocio.
 volume() {
-  local c=$1 scale=$2 from=${3:-} ref=$1_lpm.exr white=$1_lpm_white.exr
+  local c=$1 scale=$2 from=${3:-} material=${4:-auto} ref=$1_lpm.exr white=$1_lpm_white.exr
+  local bounds=${5:-"--max-mean $MAX_MEAN --max-block $MAX_BLOCK --max-alpha $MAX_ALPHA"}
   "$LPMBAKE" render "$c.vdb" --eye $EYE --target $TARGET --up $UP --fov-y $FOV --size $SIZE \
     -q -o "$ref" || fail "$c: lpmbake render failed"
   "$LPMBAKE" render "$c.vdb" --eye $EYE --target $TARGET --up $UP --fov-y $FOV --size $SIZE \
@@ -69,9 +86,9 @@ volume() {
   fi
   blend "$c.vdb" --render "$c.blender.exr" --camera-eye $EYE --camera-target $TARGET \
     --camera-up $UP --fov-y $FOV --size $SIZE --samples 16 --pixel-filter 0.01 --transparent \
-    > "$c.blender.log" 2>&1 || { cat "$c.blender.log"; fail "$c: Blender render failed"; }
+    --material "$material" > "$c.blender.log" 2>&1 || { cat "$c.blender.log"; fail "$c: Blender render failed"; }
   out=$(tool compare --ref "$ref" --white "$white" --white-radiance "$scale" --test "$c.blender.exr" \
-        --max-mean $MAX_MEAN --max-block $MAX_BLOCK --max-alpha $MAX_ALPHA --label "$NAME: $c")
+        $bounds --label "$NAME: $c")
   echo "$out"
   case $out in *"[ok]"*) ;; *) fail "$c: Blender and lpmbake render disagree" ;; esac
 }
@@ -120,6 +137,40 @@ grep -q '"lpm:sh_order": 2' C.json || fail "C: not an SH order 2 bake"
 volume C 1
 environment C 0,0,-200 -30,-50,-300 0,1,0
 
+bake D --density-scale 2.5 --g 0 --working-space lin_rec709 --albedo 0.95,0.7,0.4 --renderer-grids
+grep -q '"lpm:renderer_grids": true' D.json || fail "D: sidecar without lpm:renderer_grids true"
+volume D 1 "" constant-free "--max-mean $MAX_D_MEAN --max-p95 $MAX_D_P95 --max-block $MAX_D_BLOCK --max-alpha $MAX_ALPHA"
+# The constant-free material: stock nodes reading extinction and source, no number from
+# the sidecar (no Math or Value node, no input holding the density scale or an albedo).
+cat > check_material.py <<'PY'
+import json, sys
+sys.path.insert(0, sys.argv[sys.argv.index("--") + 1])
+import bpy, lpm_import
+bpy.ops.wm.read_factory_settings(use_empty=True)
+obj = lpm_import.import_bake("D.vdb", material="constant-free", world=False)
+tree = obj.data.materials[0].node_tree
+shader = json.load(open("D.json"))["shader"]
+consts = [shader["density_scale"]] + list(shader["albedo"])
+kinds = sorted(n.bl_idname for n in tree.nodes)
+bad = [k for k in kinds if k in ("ShaderNodeMath", "ShaderNodeValue", "ShaderNodeVectorMath")]
+names = sorted(n.attribute_name for n in tree.nodes if n.bl_idname == "ShaderNodeAttribute")
+for n in tree.nodes:
+    for i in n.inputs:
+        if i.is_linked or not hasattr(i, "default_value"):
+            continue
+        v = i.default_value
+        for x in (v if hasattr(v, "__len__") else [v]):
+            if isinstance(x, float) and any(abs(x - c) <= 1e-6 * abs(c) for c in consts):
+                bad.append("%s.%s = %g" % (n.name, i.name, x))
+ok = not bad and names == ["extinction", "source"]
+print("blender_import_test: D material %s: nodes %s, attributes %s%s" %
+      ("ok" if ok else "FAIL", ", ".join(kinds), ", ".join(names), "; " + "; ".join(bad) if bad else ""))
+PY
+out=$(blender -b --factory-startup --python check_material.py -- "$SRC/scripts/blender" 2>&1 |
+      grep "^$NAME: D material" || true)
+echo "$out"
+case $out in *"material ok"*) ;; *) fail "D: the constant-free material holds more than Attribute extinction and source" ;; esac
+
 # Errors: one line, lpmbake's exit codes.
 set +e
 msg=$(blend A.vdb --sidecar missing.json 2>&1 >/dev/null); rc=$?
@@ -131,5 +182,11 @@ msg=$(blend A.vdb --render x.exr --camera-eye 0,0,0 --camera-target 0,0,1 --size
 set -e
 [ $rc -eq 1 ] || fail "bad --size: exit $rc, expected 1"
 printf '%s\n' "$msg" | grep -q "^lpm_import: error: .*WxH" || fail "bad --size: message '$msg'"
+set +e
+msg=$(blend A.vdb --material constant-free 2>&1 >/dev/null); rc=$?
+set -e
+[ $rc -eq 2 ] || fail "constant-free without renderer grids: exit $rc, expected 2"
+[ "$(printf '%s\n' "$msg" | grep -c '^lpm_import: error: .*A\.json.*renderer_grids')" -eq 1 ] ||
+  fail "constant-free without renderer grids: message '$msg'"
 
 echo "$NAME: ok ($((SECONDS - start)) s)"

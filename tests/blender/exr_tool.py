@@ -4,8 +4,8 @@ writes EXR; no numpy, no OpenImageIO bindings needed):
   blender -b --factory-startup --python exr_tool.py -- white OUT.exr
       a constant lat-long environment of radiance 1 (16x8)
   blender -b --factory-startup --python exr_tool.py -- compare --ref REF.exr --test TEST.exr
-      [--white REF_WHITE.exr [--white-radiance E]] [--min-coverage C] [--block B] [--max-mean M] [--max-block X]
-      [--max-alpha A] [--label NAME]
+      [--white REF_WHITE.exr [--white-radiance E]] [--min-coverage C] [--block B] [--max-mean M] [--max-p95 P]
+      [--max-block X] [--max-alpha A] [--label NAME]
 
 compare: REF is `lpmbake render` without an environment (background 0), REF_WHITE the same
 render with the constant environment of 1 (which `lpmbake render` scales by the bake's
@@ -15,8 +15,8 @@ least C "see the volume" (without --white: every block where REF is non-zero). F
 block, relative L1 = sum |TEST - REF| / sum REF over its pixels and RGB. Prints one line:
 blocks, mean / 95th percentile / max of the per-block relative L1, the whole selected area's
 relative L1, and (when TEST has alpha, rendered with a transparent film) the largest block
-mean of |alpha - coverage|. Exit 0 when mean <= M, max <= X and the alpha difference <= A
-(each bound only when given), 1 otherwise, 2 on unreadable input.
+mean of |alpha - coverage|. Exit 0 when mean <= M, 95th percentile <= P, max <= X and the
+alpha difference <= A (each bound only when given), 1 otherwise, 2 on unreadable input.
 """
 
 import argparse
@@ -100,6 +100,8 @@ def compare(a):
     fails = []
     if a.max_mean is not None and not mean <= a.max_mean:
         fails.append("mean %.4f > %.4f" % (mean, a.max_mean))
+    if a.max_p95 is not None and not p95 <= a.max_p95:
+        fails.append("p95 %.4f > %.4f" % (p95, a.max_p95))
     if a.max_block is not None and not s[-1] <= a.max_block:
         fails.append("max %.4f > %.4f" % (s[-1], a.max_block))
     if a.max_alpha is not None and (amax is None or not amax <= a.max_alpha):
@@ -123,6 +125,7 @@ def main(argv):
     p.add_argument("--min-coverage", type=float, default=0.1)
     p.add_argument("--block", type=int, default=4)
     p.add_argument("--max-mean", type=float)
+    p.add_argument("--max-p95", type=float)
     p.add_argument("--max-block", type=float)
     p.add_argument("--max-alpha", type=float)
     p.add_argument("--label", default="compare")

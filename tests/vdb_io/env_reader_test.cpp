@@ -298,3 +298,18 @@ TEST(EnvReader, HugeDimensionsRefusedBeforeAllocating) {
     // The largest accepted size is stated exactly.
     EXPECT_EQ(kMaxEnvPixels, std::int64_t(32768) * 16384);
 }
+
+TEST(EnvReader, OptionsNameTheFieldOutOfRange) {
+    EnvReadOptions o;
+    EXPECT_NO_THROW(o.validate());
+    o.scale = -2;
+    try {
+        o.validate();
+        ADD_FAILURE() << "a negative scale passed";
+    } catch (const SettingError& e) {
+        EXPECT_EQ(e.field(), "scale");
+    }
+    o.scale = 1;
+    o.rotateYDeg = NAN;
+    EXPECT_THROW(o.validate(), SettingError);
+}

@@ -16,12 +16,15 @@ TEST(RendererGrids, ExtinctionAndSourceFromTheConstants) {
     scatter->setTransform(density->transform().copy());
     scatter->tree().setValue(openvdb::Coord(1, 2, 3), openvdb::Vec3s(1, 2, 4));
     scatter->tree().setValue(openvdb::Coord(17, 1, 1), openvdb::Vec3s(8, 8, 8));
+    scatter->tree().setValue(openvdb::Coord(40, 40, 40), openvdb::Vec3s(5, 5, 5));  // a shell voxel
     auto emission = scatter->deepCopy();
     emission->tree().setValue(openvdb::Coord(1, 2, 3), openvdb::Vec3s(10, 0, 0));
     const RGB albedo(0.5f, 0.75f, 1.0f);
     const RendererGrids r = makeRendererGrids(*density, *scatter, emission.get(), 3.0, albedo);
     EXPECT_EQ(r.extinction->activeVoxelCount(), 1 + 512);
-    EXPECT_EQ(r.source->activeVoxelCount(), 1 + 512);
+    EXPECT_EQ(r.source->activeVoxelCount(), 1 + 512 + 1) << "and scatter's voxels";
+    EXPECT_TRUE(r.source->tree().isValueOn(openvdb::Coord(40, 40, 40)));
+    EXPECT_EQ(r.source->tree().getValue(openvdb::Coord(40, 40, 40)), openvdb::Vec3s(0.f)) << "no density: 0";
     EXPECT_EQ(r.extinction->transform(), density->transform());
     EXPECT_FLOAT_EQ(r.extinction->tree().getValue(openvdb::Coord(1, 2, 3)), 6.f);
     EXPECT_FLOAT_EQ(r.extinction->tree().getValue(openvdb::Coord(20, 5, 5)), 1.5f);

@@ -81,8 +81,8 @@ TEST(VdbFile, EveryCompressionHalfAndValueTypeReadsBack) {
          std::vector<std::uint32_t>{COMPRESS_NONE, COMPRESS_ZIP, COMPRESS_BLOSC, COMPRESS_ACTIVE_MASK,
                                     COMPRESS_ZIP | COMPRESS_ACTIVE_MASK, COMPRESS_BLOSC | COMPRESS_ACTIVE_MASK})
     {
-        for (bool half : {false, true}) {
-            SCOPED_TRACE("compression " + std::to_string(comp) + (half ? ", half" : ""));
+        for (bool halfFloats : {false, true}) {
+            SCOPED_TRACE("compression " + std::to_string(comp) + (halfFloats ? ", half" : ""));
             auto f = mixedFloatGrid();
             auto v = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
             v->setName("v");
@@ -95,8 +95,8 @@ TEST(VdbFile, EveryCompressionHalfAndValueTypeReadsBack) {
             n->setName("n");
             n->tree().setValue(openvdb::Coord(0, 0, 0), 42);
             n->tree().setValueOff(openvdb::Coord(1, 0, 0), 5);
-            for (auto& g : openvdb::GridPtrVec{f, v, d, n}) g->setSaveFloatAsHalf(half);
-            const std::string path = dir + "/c" + std::to_string(comp) + (half ? "h" : "") + ".vdb";
+            for (auto& g : openvdb::GridPtrVec{f, v, d, n}) g->setSaveFloatAsHalf(halfFloats);
+            const std::string path = dir + "/c" + std::to_string(comp) + (halfFloats ? "h" : "") + ".vdb";
             openvdb::io::File out(path);
             out.setCompression(comp);
             out.write(openvdb::GridPtrVec{f, v, d, n});

@@ -2,7 +2,9 @@
 #include "vdb_io/volume_reader.h"
 
 #include <gtest/gtest.h>
+
 #include <sys/resource.h>
+#include <functional>
 
 #include <openvdb/tools/LevelSetSphere.h>
 
@@ -299,4 +301,29 @@ TEST(VolumeReader, CorruptHeaderFailsWithoutHugeAllocation) {
     rusage after{};
     ::getrusage(RUSAGE_SELF, &after);
     EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 1024L * 1024L);  // KiB: under 1 GiB of growth
+}
+
+// The read options validate themselves (one home for their ranges); readVolume checks
+// them before touching the file.
+TEST(VolumeReader, OptionsNameTheFieldOutOfRange) {
+    auto field = [](const std::function<void(VolumeReadOptions&)>& breakIt) {
+        VolumeReadOptions o;
+        breakIt(o);
+        try {
+            o.validate();
+        } catch (const SettingError& e) {
+            return e.field();
+        }
+        return std::string();
+    };
+    EXPECT_EQ(field([](VolumeReadOptions&) {}), "");
+    EXPECT_EQ(field([](VolumeReadOptions& o) { o.densityScale = -1; }), "densityScale");
+    EXPECT_EQ(field([](VolumeReadOptions& o) { o.emissionScale = INFINITY; }), "emissionScale");
+    EXPECT_EQ(field([](VolumeReadOptions& o) { o.temperatureOffset = NAN; }), "temperatureOffset");
+    EXPECT_EQ(field([](VolumeReadOptions& o) { o.solveScale = kMaxSolveScale * 1.01; }), "solveScale");
+    EXPECT_EQ(field([](VolumeReadOptions& o) { o.solveScale = kMinSolveScale; }), "");
+    VolumeReadOptions bad;
+    bad.path = "/no/such/file.vdb";
+    bad.solveScale = 0;
+    EXPECT_THROW(readVolume(bad), SettingError);
 }
