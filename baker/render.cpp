@@ -87,7 +87,7 @@ void runRender(const RenderOptions& o, const Log& log) {
     const PinholeCamera cam = renderCamera(o, bake);
     writePreviewImage(out, renderBake(bake, cam, env.get(), o.stepVoxels), o.width, o.height, shader.workingColorspace);
     log.note("wrote " + o.output + " (" + std::to_string(o.width) + "x" + std::to_string(o.height) + ", " +
-             shader.workingColorspace + " scene-linear in EXR, the sRGB view in PNG)");
+             previewImageEncoding(o.output, shader.workingColorspace) + ")");
 }
 
 }  // namespace lpm

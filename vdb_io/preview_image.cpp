@@ -39,6 +39,10 @@ bool isPreviewImagePath(const std::string& path) {
     return e == ".exr" || e == ".png";
 }
 
+std::string previewImageEncoding(const std::string& path, const std::string& working) {
+    return extension(path) == ".png" ? "sRGB view" : working + " scene-linear";
+}
+
 void writePreviewImage(AtomicOutput& out, std::vector<float> img, int width, int height, const std::string& working) {
     const bool png = extension(out.finalPath()) == ".png";
     OIIO::ImageSpec spec(width, height, 3, png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::HALF);

@@ -12,6 +12,9 @@ namespace lpm {
 /// True for a path ending in .exr or .png (case-insensitive), the formats writePreviewImage takes.
 bool isPreviewImagePath(const std::string& path);
 
+/// What writePreviewImage stores for `path`: "<working> scene-linear" (EXR) or "sRGB view" (PNG).
+std::string previewImageEncoding(const std::string& path, const std::string& workingSpace);
+
 /// Writes `rgb` ([pixel][rgb], row 0 at the top) through `out` and commits it. The format
 /// follows the final path's extension. Throws OutputError.
 void writePreviewImage(AtomicOutput& out, std::vector<float> rgb, int width, int height,
