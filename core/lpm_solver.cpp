@@ -36,16 +36,7 @@ std::string format(const char* fmt, double a, double b = 0, double c = 0) {
 }
 
 void validateLights(const Lights& lights) {
-    for (const Sun& sun : lights.suns) {
-        if (!(length(sun.toSun) > 0)) throw Error("LPM", "sun direction must be non-zero");
-        for (int c = 0; c < 3; ++c)
-            if (!(sun.irradiance[c] >= 0) || !std::isfinite(sun.irradiance[c]))
-                throw Error("LPM",
-                            "sun irradiance must be finite and non-negative, got " + std::to_string(sun.irradiance[c]));
-        if (!(sun.angularDiameterDeg >= 0 && sun.angularDiameterDeg < 180))
-            throw Error("LPM", "sun angular diameter must be in [0, 180) degrees, got " +
-                                   std::to_string(sun.angularDiameterDeg));
-    }
+    for (const Sun& sun : lights.suns) sun.validate();
 }
 
 std::shared_ptr<const EnvBinning> binning(const Medium& m, const Lights& lights, const LpmSettings& s,
