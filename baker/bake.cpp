@@ -64,7 +64,9 @@ std::string flagOf(const std::string& field) {
                                                                 {"multiresAfter", "--multires-after"},
                                                                 {"linearSource", "--source"},
                                                                 {"deltaM", "--delta-m"},
-                                                                {"envHotShare", "--env-hot-share"}};
+                                                                {"envHotShare", "--env-hot-share"},
+                                                                {"probes", "--verify"},
+                                                                {"pathsPerProbe", "--verify-paths"}};
     for (const auto& f : flags)
         if (field == f.first) return f.second;
     return field;  // a setting without a flag (only reachable from the library)
@@ -106,6 +108,14 @@ Sun toSun(const SunOption& s) { return Sun{normalize(s.toSun), s.irradiance, s.a
 
 /// What the command needs, then every settings struct's own range rules (the library is
 /// their one home), with the failing field named by its flag.
+/// --verify's settings; --max-error alone implies 64 probes.
+VerifySettings verifySettings(const BakeOptions& o) {
+    VerifySettings v;
+    v.probes = o.verifyProbes > 0 || o.maxError < 0 ? o.verifyProbes : 64;
+    v.pathsPerProbe = o.verifyPaths;
+    return v;
+}
+
 void checkOptions(const BakeOptions& o) {
     if (o.input.empty()) throw UsageError("no input VDB given");
     if (o.output.empty()) throw UsageError("no output given (-o OUT.vdb)");
@@ -113,6 +123,8 @@ void checkOptions(const BakeOptions& o) {
         throw UsageError("no light: give --env, --sun or --emission-grid");
     if (o.threads < 0)
         throw UsageError("--threads must be 0 (all cores) or positive, got " + std::to_string(o.threads));
+    if (!(o.maxError < 0) && !(o.maxError > 0 && o.maxError < 10))  // negative: not given
+        throw UsageError("--max-error must be in (0, 10) (a relative error: 0.02 = 2%), got " + fmt(o.maxError));
     try {
         volumeReadOptions(o).validate();
         envReadOptions(o).validate();
@@ -122,6 +134,9 @@ void checkOptions(const BakeOptions& o) {
             sun.validate();
         }
         o.solver.validate();
+        if (o.verifyProbes != 0 || o.maxError >= 0) verifySettings(o).validate();
+        else if (o.verifyPaths != VerifySettings{}.pathsPerProbe)
+            throw UsageError("--verify-paths needs --verify N or --max-error E");
     } catch (const SettingError& e) {
         throw UsageError(flagOf(e.field()) + " " + e.rule());
     }
@@ -244,6 +259,36 @@ LpmResult solveStage(const BakeOptions& o, const VolumeInput& vol, const Lights&
     return res;
 }
 
+/// 3b. --verify: Monte Carlo probes of the result (with every sun's single scattering still
+/// in the SH), and --max-error's verdict.
+void verifyStage(const BakeOptions& o, const VolumeInput& vol, const Lights& lights, const LpmResult& res,
+                 BakeSummary& sum, const Log& log) {
+    const VerifySettings vs = verifySettings(o);
+    if (vs.probes <= 0 || vol.empty) return;
+    sum.verify = verifyBake(vol.medium, lights, res.sh, res.coeffs, vs);
+    sum.verified = true;
+    const VerifyReport& v = sum.verify;
+    if (v.probes == 0) {
+        log.note("verify: nothing a renderer would see scatters light (no probe drawn)");
+        return;
+    }
+    const auto g3 = [](double x) {
+        char buf[32];
+        std::snprintf(buf, sizeof buf, "%.3g", x);
+        return std::string(buf);
+    };
+    const auto pct = [&g3](double x) { return g3(100.0 * x) + "%"; };
+    log.note("verify: estimated relative error " + pct(v.error) + " (" + fmt(100.0 * v.confidence) + "% interval " +
+             pct(v.low) + " to " + pct(v.high) + "; " + std::to_string(v.probes) + " probes of " +
+             std::to_string(v.pathsPerProbe) + " paths, their noise " + pct(v.mcNoise) + ", " + g3(v.seconds) + " s)");
+    if (o.maxError >= 0 && v.low > o.maxError) {
+        sum.verifyFailed = true;
+        log.warn("verify: the error is above --max-error " + pct(o.maxError) + " with " + fmt(100.0 * v.confidence) +
+                 "% confidence; the bake is written and marked lpm:verify_failed (exit " +
+                 std::to_string(kExitVerify) + ")");
+    }
+}
+
 /// 4. The suns' single scattering leaves the SH for the exact terms; the returned
 /// direction-averaged `scatter` keeps it (empty: scatter = sh_0 Y00).
 std::vector<float> separateSunTerms(const BakeOptions& o, bool sunTermsAsked, bool emptyVolume, LpmResult& res,
@@ -322,6 +367,7 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
 
     const LpmSettings settings = solveSettings(o, context, log);
     LpmResult res = solveStage(o, vol, lights, settings, sum, log);
+    verifyStage(o, vol, lights, res, sum, log);
     const std::vector<float> scatter = separateSunTerms(o, settings.sunTerms, vol.empty, res, sum, log);
 
     // Metadata: everything a consumer needs to use the bake without this tool.

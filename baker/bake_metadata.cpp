@@ -218,6 +218,18 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
         str(sunTermKey(int(k), SunTermField::Source), t.fromEnvironment ? "environment hot pixel" : "--sun");
         str(sunTermKey(int(k), SunTermField::Grid), sunTransmittanceGridName(int(k)));
     }
+    if (sum.verified) {
+        dbl(verifyError, sum.verify.error);
+        dbl(verifyErrorLow, sum.verify.low);
+        dbl(verifyErrorHigh, sum.verify.high);
+        dbl(verifyConfidence, sum.verify.confidence);
+        i32(verifyProbes, sum.verify.probes);
+        i32(verifyPaths, sum.verify.pathsPerProbe);
+        dbl(verifyNoise, sum.verify.mcNoise);
+        dbl(verifySeconds, sum.verify.seconds);
+        if (o.maxError >= 0) dbl(verifyMaxError, o.maxError);
+        flag(verifyFailed, sum.verifyFailed);
+    }
     str(settings, canonicalSettings(o));
     str(bakekey::settingsDigest, lpm::settingsDigest(o));
     return meta;

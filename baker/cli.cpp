@@ -153,6 +153,8 @@ EXIT STATUS
   4  internal error (out of memory, unexpected failure)
   5  some frames of a sequence of several failed (they are listed at the end; a
      one-frame run exits with that frame's code instead)
+  6  the bake was written, but --max-error failed: its --verify error estimate is
+     above E with 95% confidence (the file is marked lpm:verify_failed)
   Errors are printed as one line: lpmbake: error: <component>: <message>
 
 ENVIRONMENT
@@ -195,6 +197,7 @@ struct Args {
     std::string sourceShape = "auto", deltaM = "auto", multires = "auto", sunTerm = "auto";
     std::string upAxis = "y";
     std::string solveScale = "1";
+    std::string maxError;  ///< empty: not given
     std::string frames;
     int oneFrame = 0;
     std::string eye, target, up, size = "256x256";
@@ -352,6 +355,23 @@ void addSolverOptions(CLI::App& app, Args& a) {
         ->group(gS);
 }
 
+void addVerifyOptions(CLI::App& app, Args& a) {
+    auto* gV = "Self-check (docs/verify.md)";
+    app.add_option("--verify", a.b.verifyProbes,
+                   "N Monte Carlo probes after the bake, at voxels drawn by what a renderer sees of them: the "
+                   "bake's estimated relative error with a 95% interval (stderr, stats, lpm:verify_*); 64 is "
+                   "a good start")
+        ->type_name("N")
+        ->group(gV);
+    app.add_option("--verify-paths", a.b.verifyPaths, "Monte Carlo paths per probe")->default_val(4096)->group(gV);
+    app.add_option("--max-error", a.maxError,
+                   "E: exit " + std::to_string(kExitVerify) +
+                       " when the error is above E with 95% confidence (the interval's low end > E); the bake "
+                       "is written and marked lpm:verify_failed; implies --verify 64")
+        ->type_name("E")
+        ->group(gV);
+}
+
 void addSequenceAndOutputOptions(CLI::App& app, Args& a) {
     auto* gF = "Sequences (docs/farm.md)";
     a.framesOpt = app.add_option("--frames", a.frames,
@@ -461,6 +481,10 @@ int runBakeCommand(Args& a, int argc, char** argv, const Log& log) {
     b.sunTerm = a.sunTerm == "on" ? 1 : (a.sunTerm == "off" ? 0 : -1);
     b.albedo = parseRgb(a.albedo, "--albedo");
     b.solveScale = parseNumber(a.solveScale, "--solve-scale");
+    if (!a.maxError.empty()) {
+        b.maxError = parseNumber(a.maxError, "--max-error");
+        if (!(b.maxError > 0)) throw UsageError("--max-error must be positive (0.02 = 2%), got " + a.maxError);
+    }
     b.suns = parseSuns(a);
     for (int i = 0; i < argc; ++i) b.commandLine += (i ? " " : "") + std::string(argv[i]);
     if (!a.frames.empty() || *a.frameOpt) {
@@ -472,8 +496,7 @@ int runBakeCommand(Args& a, int argc, char** argv, const Log& log) {
         throw UsageError("--skip-existing, --keep-going, --frame-log and --list-pending need --frames or --frame");
     if (hasFramePattern(b.input) && !fileExists(b.input))
         throw UsageError("input '" + b.input + "' has a frame pattern: give --frames A-B or --frame N");
-    runBake(b, log);
-    return kExitOk;
+    return runBake(b, log).verifyFailed ? kExitVerify : kExitOk;
 }
 
 /// Runs the parsed command; every failure becomes one line and its exit code.
@@ -515,6 +538,7 @@ int runCli(int argc, char** argv) {
     addInputOptions(app, a);
     addLightOptions(app, a);
     addSolverOptions(app, a);
+    addVerifyOptions(app, a);
     addSequenceAndOutputOptions(app, a);
     addRenderAndInfoCommands(app, a);
     try {

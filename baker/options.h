@@ -13,11 +13,15 @@
 #include "core/lpm_cache.h"
 #include "core/lpm_solver.h"
 #include "core/math.h"
+#include "core/verify.h"
 
 namespace lpm {
 
 /// Exit codes (documented in --help and docs/cli.md).
-enum ExitCode : int { kExitOk = 0, kExitUsage = 1, kExitInput = 2, kExitOutput = 3, kExitInternal = 4 };
+/// (5, kExitFramesFailed, is a sequence's: baker/sequence.h.) kExitVerify: the bake was
+/// written, but its --verify estimate is above --max-error (the file says so:
+/// lpm:verify_failed).
+enum ExitCode : int { kExitOk = 0, kExitUsage = 1, kExitInput = 2, kExitOutput = 3, kExitInternal = 4, kExitVerify = 6 };
 
 /// A bad command line (inconsistent or out-of-range options): exit code 1.
 class UsageError : public Error {
@@ -69,6 +73,9 @@ struct BakeOptions {
     std::uint64_t maxVoxels = 1ull << 30;
     double solveScale = 1.0;  ///< solve voxels per input voxel along each axis, in [0.05, 8]
     int sunTerm = -1;         ///< exact sun term: -1 auto (when g != 0), 0 off, 1 on (core/sun_term.h)
+    int verifyProbes = 0;      ///< --verify N: Monte Carlo probes after the bake (core/verify.h); 0 = none
+    int verifyPaths = 4096;    ///< paths per probe
+    double maxError = -1;      ///< --max-error E (negative: none): kExitVerify when the estimate's lower bound exceeds E
     std::string statsPath;
     std::string sidecarPath;  ///< the metadata as JSON beside the bake (vdb_io/sidecar.h); may be empty
     std::string commandLine;  ///< recorded in the metadata
@@ -88,6 +95,9 @@ struct BakeSummary {
     bool envReused = false;  ///< the environment came from the sequence's context
     int threads = 0;         ///< worker threads the bake ran with
     int sunTerms = 0;        ///< exact sun terms written (sun_transmittance_K grids)
+    bool verified = false;   ///< --verify ran (`verify` holds its report)
+    VerifyReport verify;
+    bool verifyFailed = false;  ///< the estimate's lower bound exceeds --max-error
     long peakRssKiB = 0;
 };
 

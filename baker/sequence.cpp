@@ -51,6 +51,9 @@ std::string jsonLine(const FrameRecord& r) {
           << ", \"empty\": " << (r.summary.empty ? "true" : "false")
           << ", \"peak_rss_mib\": " << double(r.peakRssKiB) / 1024.0
           << ", \"environment_reused\": " << (r.summary.envReused ? "true" : "false");
+    if (r.summary.verified)
+        j << ", \"verify_error\": " << r.summary.verify.error << ", \"verify_error_low\": " << r.summary.verify.low
+          << ", \"verify_error_high\": " << r.summary.verify.high;
     if (r.status == "failed")
         j << ", \"exit_code\": " << r.exitCode << ", \"error\": \"" << jsonEscape(r.detail) << "\"";
     else j << ", \"reason\": \"" << jsonEscape(r.detail) << "\"";
@@ -185,6 +188,14 @@ FrameRecord bakeFrame(const SequenceOptions& s, int frame, const Log& log, BakeC
     try {
         r.summary = runBake(o, log, &context);
         r.status = "baked";
+        if (r.summary.verifyFailed) {
+            r.status = "failed";
+            r.exitCode = kExitVerify;
+            r.detail = "verify: estimated error " + fmt(r.summary.verify.error) + " (low end " +
+                       fmt(r.summary.verify.low) + ") above --max-error " + fmt(o.maxError) +
+                       "; written and marked lpm:verify_failed";
+            log.error("frame " + std::to_string(frame) + ": " + r.detail);
+        }
     } catch (...) {
         r.exitCode = classifyCurrentException(r.detail);
         r.status = "failed";
@@ -219,6 +230,7 @@ std::string pendingReason(const BakeOptions& o) {
         if (digest != settingsDigest(o))
             return digest.empty() ? "the output records no settings digest (made by an older lpmbake)"
                                   : "the output was made with other settings (lpm:settings_digest " + digest + ")";
+        if (getBool(*f.meta, bakekey::verifyFailed, false)) return "the output failed its --max-error check";
     } catch (const Error& e) {
         return std::string("the output cannot be read: ") + e.what();
     }

@@ -97,6 +97,17 @@ json statsJson(const BakeOptions& o, const BakeSummary& s, const LpmResult* r) {
         {"pass_stats", passesJson(r)},
         {"decisions", r ? json(r->decisions) : json::array()},
     };
+    if (s.verified)
+        j["verify"] = {{"error", s.verify.error},
+                       {"low", s.verify.low},
+                       {"high", s.verify.high},
+                       {"confidence", s.verify.confidence},
+                       {"probes", s.verify.probes},
+                       {"paths_per_probe", s.verify.pathsPerProbe},
+                       {"mc_noise", s.verify.mcNoise},
+                       {"seconds", s.verify.seconds},
+                       {"max_error", o.maxError >= 0 ? json(o.maxError) : json(nullptr)},
+                       {"failed", s.verifyFailed}};
     if (r) {
         j["plan"] = planJson(r->plan);
         j["stages_s"] = stagesJson(*r);

@@ -106,7 +106,17 @@ const std::vector<MetaKey>& bakeSchema() {
                                              settingsDigest,
                                              sunTermCount,
                                              sunTermG,
-                                             sunTermConvention};
+                                             sunTermConvention,
+                                             verifyError,
+                                             verifyErrorLow,
+                                             verifyErrorHigh,
+                                             verifyConfidence,
+                                             verifyProbes,
+                                             verifyPaths,
+                                             verifyNoise,
+                                             verifySeconds,
+                                             verifyMaxError,
+                                             verifyFailed};
     return all;
 }
 

@@ -118,6 +118,19 @@ inline const MetaKey settingsDigest{"lpm:settings_digest", MetaType::String, tru
 inline const MetaKey sunTermCount{"lpm:sun_term_count", MetaType::Int, true, true, "exact sun terms"};
 inline const MetaKey sunTermG{"lpm:sun_term_g", MetaType::Double, false, true, "g of the sun terms' phase"};
 inline const MetaKey sunTermConvention{"lpm:sun_term_convention", MetaType::String, false, false, ""};
+// The self-check (--verify, core/verify.h, docs/verify.md); present only when it ran.
+inline const MetaKey verifyError{"lpm:verify_error", MetaType::Double, false, false,
+                                 "estimated contribution-weighted relative RMS error of band 0"};
+inline const MetaKey verifyErrorLow{"lpm:verify_error_low", MetaType::Double, false, false, "its interval's low end"};
+inline const MetaKey verifyErrorHigh{"lpm:verify_error_high", MetaType::Double, false, false, "its interval's high end"};
+inline const MetaKey verifyConfidence{"lpm:verify_confidence", MetaType::Double, false, false, "interval level"};
+inline const MetaKey verifyProbes{"lpm:verify_probes", MetaType::Int, false, false, "Monte Carlo probes"};
+inline const MetaKey verifyPaths{"lpm:verify_paths", MetaType::Int, false, false, "paths per probe"};
+inline const MetaKey verifyNoise{"lpm:verify_mc_noise", MetaType::Double, false, false, "the probes' own noise"};
+inline const MetaKey verifySeconds{"lpm:verify_s", MetaType::Double, false, false, "time of the check"};
+inline const MetaKey verifyMaxError{"lpm:verify_max_error", MetaType::Double, false, false, "--max-error"};
+inline const MetaKey verifyFailed{"lpm:verify_failed", MetaType::Bool, false, false,
+                                  "the error is above --max-error: re-bake with a higher --quality"};
 }  // namespace bakekey
 
 /// Fields of exact sun term K, keys lpm:sun_term_K_<field>.
