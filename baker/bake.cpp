@@ -284,8 +284,8 @@ void verifyStage(const BakeOptions& o, const VolumeInput& vol, const Lights& lig
     if (o.maxError >= 0 && v.low > o.maxError) {
         sum.verifyFailed = true;
         log.warn("verify: the error is above --max-error " + pct(o.maxError) + " with " + fmt(100.0 * v.confidence) +
-                 "% confidence; the bake is written and marked lpm:verify_failed (exit " +
-                 std::to_string(kExitVerify) + ")");
+                 "% confidence; the bake is written and marked lpm:verify_failed (exit " + std::to_string(kExitVerify) +
+                 ")");
     }
 }
 

@@ -167,6 +167,7 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
     i32(raysPerVoxel, o.solver.raysPerVoxel);
     i32(raysHigherOrders, o.solver.raysHigherOrders);
     i32(binsPerFace, o.solver.binsPerFace);
+    str(quality, o.quality);
     dbl(tolerance, o.solver.tolerance);
     i32(maxOrders, o.solver.maxOrders);
     i32(subdivide, o.solver.subdivide);

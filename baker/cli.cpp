@@ -12,6 +12,7 @@
 
 #include "baker/frame_pattern.h"
 #include "baker/options.h"
+#include "baker/quality.h"
 #include "baker/sequence.h"
 #include "core/sh.h"
 #include "vdb_io/io_error.h"
@@ -203,6 +204,8 @@ struct Args {
     std::string eye, target, up, size = "256x256";
     CLI::Option *framesOpt = nullptr, *frameOpt = nullptr;
     CLI::App *render = nullptr, *info = nullptr;
+    CLI::App* app = nullptr;
+    std::string quality = "default";
 };
 
 void addInputOptions(CLI::App& app, Args& a) {
@@ -277,6 +280,12 @@ void addLightOptions(CLI::App& app, Args& a) {
 
 void addSolverOptions(CLI::App& app, Args& a) {
     auto* gS = "Solver";
+    std::string qualityHelp = "solver knobs measured to a target error (docs/accuracy.md); explicit knobs override:";
+    for (const QualityPreset& p : qualityPresets()) qualityHelp += "\n  " + p.name + ": " + p.purpose;
+    app.add_option("--quality", a.quality, qualityHelp)
+        ->default_val("default")
+        ->check(CLI::IsMember({"preview", "default", "production"}))
+        ->group(gS);
     app.add_option("--directions-per-face", a.b.solver.directionsPerFace,
                    "n: n x n propagation directions per cube face (1.." + std::to_string(kMaxDirectionsPerFace) + ")")
         ->default_val(a.b.solver.directionsPerFace)
@@ -479,6 +488,11 @@ int runBakeCommand(Args& a, int argc, char** argv, const Log& log) {
     b.solver.deltaM = a.deltaM == "on" ? 1 : (a.deltaM == "off" ? 0 : -1);
     b.solver.multires = a.multires == "on" ? 1 : (a.multires == "off" ? 0 : -1);
     b.sunTerm = a.sunTerm == "on" ? 1 : (a.sunTerm == "off" ? 0 : -1);
+    std::vector<std::string> explicitKnobs;
+    for (const std::string& flag : qualityFlags())
+        if (a.app->count(flag) > 0) explicitKnobs.push_back(flag);
+    applyQuality(a.quality, b.solver, explicitKnobs);
+    b.quality = a.quality;
     b.albedo = parseRgb(a.albedo, "--albedo");
     b.solveScale = parseNumber(a.solveScale, "--solve-scale");
     if (!a.maxError.empty()) {
@@ -534,6 +548,7 @@ int runCli(int argc, char** argv) {
     app.set_version_flag("--version", std::string("lpmbake ") + LPM_VERSION_STRING);
     app.require_subcommand(0, 1);
     Args a;
+    a.app = &app;
     a.b.threads = defaultThreads();
     addInputOptions(app, a);
     addLightOptions(app, a);

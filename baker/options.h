@@ -21,7 +21,14 @@ namespace lpm {
 /// (5, kExitFramesFailed, is a sequence's: baker/sequence.h.) kExitVerify: the bake was
 /// written, but its --verify estimate is above --max-error (the file says so:
 /// lpm:verify_failed).
-enum ExitCode : int { kExitOk = 0, kExitUsage = 1, kExitInput = 2, kExitOutput = 3, kExitInternal = 4, kExitVerify = 6 };
+enum ExitCode : int {
+    kExitOk = 0,
+    kExitUsage = 1,
+    kExitInput = 2,
+    kExitOutput = 3,
+    kExitInternal = 4,
+    kExitVerify = 6
+};
 
 /// A bad command line (inconsistent or out-of-range options): exit code 1.
 class UsageError : public Error {
@@ -66,16 +73,17 @@ struct BakeOptions {
     std::vector<SunOption> suns;
 
     LpmSettings solver;
-    int threads = 0;  ///< 0 = all cores
+    std::string quality = "default";  ///< --quality preset the solver knobs came from (baker/quality.h)
+    int threads = 0;                  ///< 0 = all cores
     bool half = false;
     bool noDensity = false;
     bool rendererGrids = false;  ///< also write extinction and source (vdb_io/renderer_grids.h)
     std::uint64_t maxVoxels = 1ull << 30;
     double solveScale = 1.0;  ///< solve voxels per input voxel along each axis, in [0.05, 8]
     int sunTerm = -1;         ///< exact sun term: -1 auto (when g != 0), 0 off, 1 on (core/sun_term.h)
-    int verifyProbes = 0;      ///< --verify N: Monte Carlo probes after the bake (core/verify.h); 0 = none
-    int verifyPaths = 4096;    ///< paths per probe
-    double maxError = -1;      ///< --max-error E (negative: none): kExitVerify when the estimate's lower bound exceeds E
+    int verifyProbes = 0;     ///< --verify N: Monte Carlo probes after the bake (core/verify.h); 0 = none
+    int verifyPaths = 4096;   ///< paths per probe
+    double maxError = -1;     ///< --max-error E (negative: none): kExitVerify when the estimate's lower bound exceeds E
     std::string statsPath;
     std::string sidecarPath;  ///< the metadata as JSON beside the bake (vdb_io/sidecar.h); may be empty
     std::string commandLine;  ///< recorded in the metadata

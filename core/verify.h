@@ -25,8 +25,8 @@
 namespace lpm {
 
 struct VerifySettings {
-    int probes = 64;            ///< voxels drawn (with replacement)
-    int pathsPerProbe = 4096;   ///< Monte Carlo paths at each probe
+    int probes = 64;           ///< voxels drawn (with replacement)
+    int pathsPerProbe = 4096;  ///< Monte Carlo paths at each probe
     std::uint64_t seed = 0x5eed;
     double confidence = 0.95;  ///< two-sided level of the interval (0.9, 0.95 or 0.99)
     void validate() const;     ///< throws SettingError (fields probes, pathsPerProbe, confidence)
@@ -41,10 +41,10 @@ struct VerifyProbe {
 
 struct VerifyReport {
     int probes = 0, pathsPerProbe = 0;
-    double error = 0;             ///< estimated relative RMS error e (0.01 = 1%)
-    double low = 0, high = 0;     ///< its confidence interval
+    double error = 0;          ///< estimated relative RMS error e (0.01 = 1%)
+    double low = 0, high = 0;  ///< its confidence interval
     double confidence = 0.95;
-    double mcNoise = 0;           ///< RMS relative standard error of the probes' MC estimates
+    double mcNoise = 0;  ///< RMS relative standard error of the probes' MC estimates
     double seconds = 0;
     std::vector<VerifyProbe> probeList;
 };

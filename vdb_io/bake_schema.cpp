@@ -70,6 +70,7 @@ const std::vector<MetaKey>& bakeSchema() {
                                              emissionScale,
                                              emissionConvention,
                                              lights,
+                                             quality,
                                              directionsPerFace,
                                              raysPerVoxel,
                                              raysHigherOrders,

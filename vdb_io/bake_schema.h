@@ -80,6 +80,8 @@ inline const MetaKey emissionScale{"lpm:emission_scale", MetaType::Double, false
 inline const MetaKey emissionConvention{"lpm:emission_convention", MetaType::String, false, false, ""};
 inline const MetaKey lights{"lpm:lights", MetaType::String, true, false, "every light, in words"};
 // Solver settings and what it did.
+inline const MetaKey quality{"lpm:quality", MetaType::String, false, false,
+                             "--quality preset: preview, default or production (explicit knobs override it)"};
 inline const MetaKey directionsPerFace{"lpm:directions_per_face", MetaType::Int, true, false, ""};
 inline const MetaKey raysPerVoxel{"lpm:rays_per_voxel", MetaType::Int, true, false, ""};
 inline const MetaKey raysHigherOrders{"lpm:rays_higher_orders", MetaType::Int, true, false, ""};
@@ -122,7 +124,8 @@ inline const MetaKey sunTermConvention{"lpm:sun_term_convention", MetaType::Stri
 inline const MetaKey verifyError{"lpm:verify_error", MetaType::Double, false, false,
                                  "estimated contribution-weighted relative RMS error of band 0"};
 inline const MetaKey verifyErrorLow{"lpm:verify_error_low", MetaType::Double, false, false, "its interval's low end"};
-inline const MetaKey verifyErrorHigh{"lpm:verify_error_high", MetaType::Double, false, false, "its interval's high end"};
+inline const MetaKey verifyErrorHigh{"lpm:verify_error_high", MetaType::Double, false, false,
+                                     "its interval's high end"};
 inline const MetaKey verifyConfidence{"lpm:verify_confidence", MetaType::Double, false, false, "interval level"};
 inline const MetaKey verifyProbes{"lpm:verify_probes", MetaType::Int, false, false, "Monte Carlo probes"};
 inline const MetaKey verifyPaths{"lpm:verify_paths", MetaType::Int, false, false, "paths per probe"};

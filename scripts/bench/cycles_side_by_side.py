@@ -355,7 +355,8 @@ def cmd_render(argv):
         path = os.path.join(a.out, name)
         log("rendering %s: %d spp, seed %d ..." % (kind, spp, seed))
         dt = render_one(scene, spp, seed, path)
-        timings["renders"].append({"kind": kind, "spp": spp, "seed": seed, "seconds": dt, "image": path})
+        timings["renders"].append({"kind": kind, "spp": spp, "seed": seed, "seconds": dt, "image": path,
+                                   "loadavg_after": os.getloadavg()[0]})
         save()
         log("%s %d spp: %.2f s -> %s" % (kind, spp, dt, path))
     return 0
@@ -537,10 +538,12 @@ def cmd_compare(argv):
                                                        secs, err[0], err[1], r["brightness"]))
     out()
     st = tim.get("startup_s")
+    loads = [r["loadavg_after"] for r in tim["renders"] if "loadavg_after" in r]
     out("Blender start-up (launch to script start) %s s, scene build %s s (not in the seconds above); "
-        "Cycles threads %s, volume step rate %g, max bounces %d." % (
+        "Cycles threads %s, volume step rate %g, max bounces %d; 1-minute load average after each Cycles "
+        "render %s (above the thread count: another process shared the cores)." % (
             fmt_s(st) if st is not None else "n/a", fmt_s(tim["scene_build_s"]), tim.get("threads"),
-            tim["step_rate"], tim["bounces"]))
+            tim["step_rate"], tim["bounces"], ", ".join("%.1f" % x for x in loads) if loads else "n/a"))
     out()
 
     report = {"pixels": int(mask.sum()), "blocks": int(maskb.sum()), "rows": [
@@ -616,8 +619,8 @@ def cmd_compare(argv):
                 tc_hd_lo = t0 + c * spp * hd_cov
                 if math.isfinite(spp):
                     spp_s = "%.0f" % spp
-                    if spp > 4 * ref_spp:
-                        spp_s += " (beyond the reference: extrapolated)"
+                    if spp > ref_spp:
+                        spp_s += " (more than the reference: limited by its noise)"
                 else:
                     spp_s = "inf (lpmbake's error is within the ladder's floor)"
                 out("| %s | %s | %.4f | %s | %s | %s | %s | %s [%s] | %s | %s |" % (

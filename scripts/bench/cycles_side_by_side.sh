@@ -3,7 +3,7 @@
 # one run (docs/cycles_comparison.md):
 #
 #   1. a volume: the procedural ~1M-voxel plume (`lpm_make_volume plume --res 124`) or --vdb;
-#   2. lpmbake: one bake per setting (cheap, default, fine; --setting), each timed, then
+#   2. lpmbake: one bake per setting (preview, cheap, default, fine; --setting), timed, then
 #      `lpmbake render` of each bake with the same camera, timed; all in Linear Rec.709
 #      (--env-colorspace lin_rec709 --working-space lin_rec709: no colour conversion);
 #   3. Cycles (Blender 3.4, CPU) path-traces the PHYSICAL volume (not the bake): sigma_t =
@@ -98,7 +98,9 @@ if [ "$QUICK" = 1 ]; then
   HD=0
 fi
 if [ ${#SETTINGS[@]} -eq 0 ]; then
-  SETTINGS=("cheap=--directions-per-face 2 --rays-per-voxel 1" "default=" "fine=--directions-per-face 8 --rays-per-voxel 3")
+  SETTINGS=("preview=--solve-scale 0.5 --directions-per-face 2 --rays-per-voxel 1"
+            "cheap=--directions-per-face 2 --rays-per-voxel 1" "default="
+            "fine=--directions-per-face 8 --rays-per-voxel 3")
   [ "$QUICK" = 0 ] || SETTINGS=("cheap=--directions-per-face 2 --rays-per-voxel 1" "default=")
 fi
 for n in "$W" "$H" "$REF" "$RES" "$BOUNCES" "$EXTRA" "$THREADS"; do
@@ -128,7 +130,7 @@ run() {
   fi
 }
 
-echo "$NAME: $(date -u +%Y-%m-%dT%H:%MZ), $(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')), $(blender --version 2>/dev/null | head -n1), out $OUT"
+echo "$NAME: $(date -u +%Y-%m-%dT%H:%MZ), $(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')), $(blender --version 2>/dev/null | sed -n 1p), load average $(cut -d' ' -f1-3 /proc/loadavg), out $OUT"
 
 # 1. The volume.
 if [ -z "$VDB" ]; then
@@ -154,7 +156,7 @@ for s in "${SETTINGS[@]}"; do
     "${THREADOPT[@]}" --stats "bake_$name.stats.json" --sidecar "bake_$name.json" -o "bake_$name.vdb"
   t1=$(now)
   names+=("$name"); opts+=("$o"); bake_s+=("$(elapsed "$t0" "$t1")")
-  echo "$NAME: bake $name (${o:-defaults}): ${bake_s[-1]} s"
+  echo "$NAME: bake $name (${o:-defaults}): ${bake_s[-1]} s (load average $(cut -d" " -f1 /proc/loadavg))"
 done
 first=${names[0]}
 for n in "${names[@]}"; do [ "$n" != default ] || first=default; done
@@ -165,11 +167,12 @@ dgrid=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['metadat
 bbox=$("$LPMBAKE" info "bake_$first.vdb" | python3 -c "
 import re, sys
 g = sys.argv[1]
-for line in sys.stdin:
-    if line.strip().startswith(g + ':'):
-        m = re.search(r'index bbox \[(-?\d+), (-?\d+), (-?\d+)\]\.\.\[(-?\d+), (-?\d+), (-?\d+)\]', line)
-        if m:
-            print(','.join(m.groups())); break
+found = []
+for line in sys.stdin.read().splitlines():   # read everything: no SIGPIPE for lpmbake
+    m = re.search(r'index bbox \[(-?\d+), (-?\d+), (-?\d+)\]\.\.\[(-?\d+), (-?\d+), (-?\d+)\]', line)
+    if m and line.strip().startswith(g + ':'):
+        found.append(','.join(m.groups()))
+print(found[0] if found else '')
 " "$dgrid")
 [ -n "$bbox" ] || die "cannot read the density's index box from 'lpmbake info bake_$first.vdb'" 2
 camopt=()
@@ -262,4 +265,4 @@ for b in bad:
     print("cycles_side_by_side: FAIL: " + b, file=sys.stderr)
 sys.exit(1 if bad else 0)
 PY
-echo "$NAME: ok ($((SECONDS - start)) s; $OUT/table.md, $OUT/side_by_side.png)"
+echo "$NAME: ok ($((SECONDS - start)) s, load average $(cut -d' ' -f1-3 /proc/loadavg); $OUT/table.md, $OUT/side_by_side.png)"

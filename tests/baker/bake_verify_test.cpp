@@ -20,8 +20,8 @@ const std::vector<std::string> kCoarse = {"--directions-per-face", "1", "--rays-
 
 /// densityAndHeat.vdb (a real smoke, 11k voxels), g = 0.6, sky: the verify scene.
 std::vector<std::string> bakeArgs(const std::string& in, const std::string& out, std::vector<std::string> extra) {
-    std::vector<std::string> a = {in, "--env", dataPath("env/rooftop_small.hdr"), "--g", "0.6", "--density-scale", "2",
-                                  "-o", out};
+    std::vector<std::string> a = {
+        in, "--env", dataPath("env/rooftop_small.hdr"), "--g", "0.6", "--density-scale", "2", "-o", out};
     a.insert(a.end(), extra.begin(), extra.end());
     return a;
 }
@@ -39,7 +39,8 @@ TEST(BakeVerify, CoarseBakeFailsMaxErrorDefaultPasses) {
     coarse.insert(coarse.end(), {"--max-error", "0.02", "--stats", dir + "/coarse.json"});
     const auto bad = runLpmbake(bakeArgs(in, dir + "/coarse.vdb", coarse), dir);
     EXPECT_EQ(bad.code, 6) << bad.err;
-    EXPECT_NE(bad.err.find("lpmbake: warning: verify: the error is above --max-error 2%"), std::string::npos) << bad.err;
+    EXPECT_NE(bad.err.find("lpmbake: warning: verify: the error is above --max-error 2%"), std::string::npos)
+        << bad.err;
     ASSERT_TRUE(std::filesystem::exists(dir + "/coarse.vdb"));
     const BakeFile b = readBakeFile(dir + "/coarse.vdb");
     EXPECT_TRUE(validateBake(b).empty());
@@ -50,10 +51,9 @@ TEST(BakeVerify, CoarseBakeFailsMaxErrorDefaultPasses) {
     EXPECT_EQ(stats["verify"]["failed"], true);
     EXPECT_EQ(stats["verify"]["probes"], 64);  // implied by --max-error
 
-    const auto good =
-        runLpmbake(bakeArgs(in, dir + "/default.vdb", {"--verify", "64", "--max-error", "0.02", "--stats",
-                                                       dir + "/default.json"}),
-                   dir);
+    const auto good = runLpmbake(
+        bakeArgs(in, dir + "/default.vdb", {"--verify", "64", "--max-error", "0.02", "--stats", dir + "/default.json"}),
+        dir);
     EXPECT_EQ(good.code, 0) << good.err;
     EXPECT_NE(good.err.find("lpmbake: verify: estimated relative error"), std::string::npos) << good.err;
     EXPECT_FALSE(verifyFailedMark(dir + "/default.vdb"));
@@ -85,7 +85,8 @@ TEST(BakeVerify, SequenceCountsTheMarkedFrameAndReBakesIt) {
 TEST(BakeVerify, BadValuesAreUsageErrors) {
     const std::string dir = lpmtest::scratchDir(), in = dataPath("vdb/densityAndHeat.vdb");
     for (const auto& [flag, value] : std::vector<std::pair<std::string, std::string>>{
-             {"--max-error", "0"}, {"--max-error", "nan"}, {"--verify", "3"}, {"--verify-paths", "2"}}) {
+             {"--max-error", "0"}, {"--max-error", "nan"}, {"--verify", "3"}, {"--verify-paths", "2"}})
+    {
         const auto r = runLpmbake(bakeArgs(in, dir + "/x.vdb", {flag, value}), dir);
         EXPECT_EQ(r.code, 1) << flag << " " << value << ": " << r.err;
         EXPECT_NE(r.err.find(flag), std::string::npos) << r.err;

@@ -53,10 +53,8 @@ TEST(Verify, AxisTransmittanceSparseEqualsDense) {
         for (int y = 0; y < 24; ++y)
             for (int x = 0; x < 24; ++x) {
                 const size_t s = sparse.index(x, y, z), d = dense.index(x, y, z);
-                if (s == Medium::npos)
-                    dense.sigmaT[d] = 0.0f;
-                else
-                    sparse.sigmaT[s] = dense.sigmaT[d];
+                if (s == Medium::npos) dense.sigmaT[d] = 0.0f;
+                else sparse.sigmaT[s] = dense.sigmaT[d];
             }
     ASSERT_TRUE(sparse.sparse());
     const std::vector<float> td = axisTransmittance(dense), ts = axisTransmittance(sparse);
@@ -133,8 +131,8 @@ TEST(Verify, EstimateAgreesWithTheErrorOverEveryVoxel) {
         EXPECT_GE(rep.high, rep.error);
         EXPECT_GE(truth, rep.low) << "estimate " << rep.error;
         EXPECT_LE(truth, rep.high) << "estimate " << rep.error;
-        std::printf("verify: estimate %.4f [%.4f, %.4f], every voxel %.4f, MC noise %.4f, %.2f s\n", rep.error,
-                    rep.low, rep.high, truth, rep.mcNoise, rep.seconds);
+        std::printf("verify: estimate %.4f [%.4f, %.4f], every voxel %.4f, MC noise %.4f, %.2f s\n", rep.error, rep.low,
+                    rep.high, truth, rep.mcNoise, rep.seconds);
     }
     // The coarse bake is detectably worse than 2%, the default one is not.
     EXPECT_GT(verifyBake(v.scene.medium, v.scene.lights, v.coarse.sh, v.coarse.coeffs, s).low, 0.02);
