@@ -20,6 +20,9 @@ namespace lpm {
 struct McSettings {
     std::uint64_t seed = 1;
     int rouletteDepth = 3;  ///< Russian roulette starts after this many collisions
+    /// mcRenderImage: add the environment seen through the volume (false: only the light
+    /// the volume scatters or emits toward the camera).
+    bool background = true;
 };
 
 struct McVoxelEstimate {
