@@ -48,7 +48,7 @@ settings=(
   "n=1|directions|--directions-per-face 1" "n=2|directions|--directions-per-face 2"
   "n=3|directions|--directions-per-face 3" "n=6|directions|--directions-per-face 6"
   "r=1|rays|--rays-per-voxel 1" "r=3|rays|--rays-per-voxel 3"
-  "bins 1|bins|--bins-per-face 1" "bins 3|bins|--bins-per-face 3"
+  "bins 1|bins|--bins-per-face 1" "bins 4|bins|--bins-per-face 4"
   "sh 1|sh order|--sh-order 1" "sh 3|sh order|--sh-order 3"
   "tol 1e-2|tolerance|--tolerance 1e-2" "tol 1e-4|tolerance|--tolerance 1e-4"
   "max orders 3|max orders|--max-orders 3"
@@ -94,7 +94,8 @@ for scene in "${scenes[@]}"; do
     if ! $LPMBAKE "$vdb" $args $flags --verify 64 --stats "$stats" -q -o "$bake"; then
       echo "run.sh: $name $label: bake failed" >&2; continue
     fi
-    cmp=$($STUDY compare "$out/$name.ref.json" "$bake")
+    images=(); [ "$label" = default ] && images=("$out/$name.default.png")
+    cmp=$($STUDY compare "$out/$name.ref.json" "$bake" "${images[@]}")
     /usr/bin/python3 - "$name" "$label" "$knob" "$stats" "$cmp" >> "$results" <<'PY'
 import json, sys
 name, label, knob, stats, cmp = sys.argv[1:]
@@ -109,3 +110,5 @@ PY
   done
 done
 /usr/bin/python3 scripts/accuracy/plot.py "$results" docs
+# The default bake's side by side (reference | lpmbake render | difference x 4) per scene.
+for f in "$out"/*.default.png; do [ -e "$f" ] && cp "$f" docs/accuracy/"$(basename "$f" .default.png)"_images.png; done

@@ -11,21 +11,24 @@
 //   lpm_study sky OUT.exr
 //     A lat-long sky (blue gradient, dark ground) with a sun in the map: one pixel at 35
 //     degrees elevation holding about 60% of the map's power (for the hot-pixel extraction).
-//   lpm_study compare REF.json BAKE.vdb
+//   lpm_study compare REF.json BAKE.vdb [SIDE_BY_SIDE.png]
 //     One JSON line: the bake's band-0 and band-1..2 errors at the reference voxels (the
-//     exact sun terms added back), and `lpmbake render`'s image (black background, 4x4 rays
+//     exact sun terms added back; RMS relative to the reference's band-0 RMS), and `lpmbake render`'s image (black background, 4x4 rays
 //     a pixel) against
 //     the reference image, relative L1 per pixel and over 4x4 blocks, with the reference's
-//     own noise beside each figure.
+//     own noise beside each figure; optionally the images: reference | bake | |difference| x 4.
 #include <OpenImageIO/imageio.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <string>
 
 #include "core/sun_term.h"
+#include "core/lpm_solver.h"
 #include "tests/core/lpm_vs_mc.h"
 #include "vdb_io/bake_render.h"
 #include "vdb_io/bake_schema.h"
@@ -139,6 +142,36 @@ LpmResult bakeAtVoxels(const BakeFile& b, const json& ref, int order) {
     return r;
 }
 
+/// The bake's SH against the reference at its voxels: RMS over voxels and channels of
+/// (bake - MC), relative to the RMS of the reference's band 0 (so voxels the reference sees
+/// as nearly dark cannot blow a ratio up), for band 0 and for bands 1..2, each with the
+/// same measure of the reference's standard errors and, for band 0, the error with that
+/// noise removed in quadrature and the mean bias.
+json voxelErrors(const LpmResult& r, const json& voxels) {
+    double d0 = 0, n0 = 0, ref0 = 0, bias = 0, d12 = 0, n12 = 0;
+    for (size_t i = 0; i < voxels.size(); ++i) {
+        const std::vector<double> mean = voxels[i]["mean"], se = voxels[i]["stderr"];
+        for (int k = 0; k < r.coeffs; ++k)
+            for (int ch = 0; ch < 3; ++ch) {
+                const size_t j = size_t(k) * 3 + ch;
+                const double d = r.sh[i * size_t(r.coeffs) * 3 + j] - mean[j];
+                (k == 0 ? d0 : d12) += d * d;
+                (k == 0 ? n0 : n12) += se[j] * se[j];
+                if (k == 0) ref0 += mean[j] * mean[j], bias += d;
+            }
+    }
+    const double count = 3.0 * double(voxels.size()), scale = std::sqrt(ref0 / count);
+    json out = {{"band0_rms", std::sqrt(d0 / count) / scale},
+                {"band0_noise", std::sqrt(n0 / count) / scale},
+                {"band0_corrected", std::sqrt(std::max(0.0, d0 - n0) / count) / scale},
+                {"band0_bias", bias / count / scale}};
+    if (r.coeffs > 1) {
+        out["band12_rms"] = std::sqrt(d12 / count) / scale;
+        out["band12_noise"] = std::sqrt(n12 / count) / scale;
+    }
+    return out;
+}
+
 /// Relative L1 of `img` against the reference image, per pixel and over 4x4 blocks, with
 /// the L1 the reference's noise alone would give (E|N(0, s)| = s sqrt(2 / pi)).
 json imageErrors(const std::vector<float>& img, const json& ref, int w, int h) {
@@ -207,21 +240,38 @@ int writeSky(const std::string& path) {
     return 0;
 }
 
-int compareBake(char** argv) {
+/// reference | bake | |difference| x 4, side by side, as an sRGB PNG (exposure: the
+/// reference's 99th percentile at 0.9).
+void writeSideBySide(const std::string& path, const std::vector<float>& img, const json& ref, int w, int h) {
+    const std::vector<double> mean = ref["mean"];
+    std::vector<double> sorted(mean.begin(), mean.end());
+    std::sort(sorted.begin(), sorted.end());
+    const double white = std::max(1e-12, sorted[size_t(0.99 * double(sorted.size() - 1))] / 0.9);
+    const auto encode = [&](double v) {
+        const double x = std::clamp(v / white, 0.0, 1.0);
+        return std::uint8_t(std::lround(255.0 * (x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1 / 2.4) - 0.055)));
+    };
+    std::vector<std::uint8_t> px(size_t(3 * w) * h * 3);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            for (int ch = 0; ch < 3; ++ch) {
+                const size_t p = (size_t(y) * w + x) * 3 + ch, row = size_t(y) * 3 * w;
+                px[(row + x) * 3 + ch] = encode(mean[p]);
+                px[(row + w + x) * 3 + ch] = encode(img[p]);
+                px[(row + 2 * w + x) * 3 + ch] = encode(4.0 * std::fabs(img[p] - mean[p]));
+            }
+    auto out = OIIO::ImageOutput::create(path);
+    OIIO::ImageSpec spec(3 * w, h, 3, OIIO::TypeDesc::UINT8);
+    if (!out || !out->open(path, spec) || !out->write_image(OIIO::TypeDesc::UINT8, px.data()) || !out->close())
+        throw Error("study", "cannot write " + path);
+}
+
+int compareBake(int argc, char** argv) {
     json ref;
     std::ifstream(argv[2]) >> ref;
     const BakeFile b = readBakeFile(argv[3]);
     const int order = ref["sh_order"];
     const LpmResult r = bakeAtVoxels(b, ref, order);
-    std::vector<McVoxelEstimate> mc;
-    for (size_t i = 0; i < ref["voxels"].size(); ++i) {
-        McVoxelEstimate e;
-        e.voxel = i;
-        e.mean = ref["voxels"][i]["mean"].get<std::vector<double>>();
-        e.stdErr = ref["voxels"][i]["stderr"].get<std::vector<double>>();
-        mc.push_back(e);
-    }
-    const test::Comparison c = test::compare(r, mc);
     const json& jc = ref["camera"];
     PinholeCamera cam;
     cam.eye = {jc["eye"][0], jc["eye"][1], jc["eye"][2]};
@@ -230,12 +280,10 @@ int compareBake(char** argv) {
     cam.fovYDeg = jc["fov"];
     cam.width = jc["size"][0];
     cam.height = jc["size"][1];
-    json out = imageErrors(renderSupersampled(b, cam), ref["image"], cam.width, cam.height);
-    out["band0_rms"] = c.band0Rms;
-    out["band0_noise"] = c.band0Noise;
-    out["band0_bias"] = c.band0Bias;
-    out["band0_corrected"] = c.band0Corrected();
-    if (order > 0) out["band12_rms"] = c.band12Rms, out["band12_noise"] = c.band12Noise;
+    const std::vector<float> img = renderSupersampled(b, cam);
+    json out = imageErrors(img, ref["image"], cam.width, cam.height);
+    if (argc == 5) writeSideBySide(argv[4], img, ref["image"], cam.width, cam.height);
+    out.update(voxelErrors(r, ref["voxels"]));
     std::printf("%s\n", out.dump().c_str());
     return 0;
 }
@@ -246,13 +294,14 @@ int main(int argc, char** argv) {
     try {
         initOpenVdb();
         if (argc >= 3 && std::string(argv[1]) == "reference") return reference(argc, argv);
-        if (argc == 4 && std::string(argv[1]) == "compare") return compareBake(argv);
+        if ((argc == 4 || argc == 5) && std::string(argv[1]) == "compare") return compareBake(argc, argv);
         if (argc == 3 && std::string(argv[1]) == "sky") return writeSky(argv[2]);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "lpm_study: %s\n", e.what());
         return 1;
     }
     std::fprintf(stderr, "usage: lpm_study reference IN.vdb --bake FRAMING.vdb [...] -o REF.json\n"
-                         "       lpm_study compare REF.json BAKE.vdb\n");
+                         "       lpm_study compare REF.json BAKE.vdb [SIDE_BY_SIDE.png]\n"
+                         "       lpm_study sky OUT.exr\n");
     return 2;
 }
