@@ -3,7 +3,7 @@
 Run with Blender 3.4's own Python (bpy, numpy):
 
   blender -b --factory-startup --python cycles_side_by_side.py -- camera
-      --bake BAKE.vdb --index-bbox X0,Y0,Z0,X1,Y1,Z1 --size WxH --fov-y DEG
+      --bake BAKE.vdb --sidecar BAKE.json --index-bbox X0,Y0,Z0,X1,Y1,Z1 --size WxH --fov-y DEG
       [--eye X,Y,Z --target X,Y,Z] [--up X,Y,Z] --out CAMERA.json [--white WHITE.exr]
       `lpmbake render`'s camera (vdb_io/bake_render.cpp framingCamera: the density's
       active index box grown by one voxel, through the grid's index-to-world matrix, seen
@@ -32,12 +32,16 @@ Run with Blender 3.4's own Python (bpy, numpy):
   blender -b --factory-startup --python cycles_side_by_side.py -- compare
       --manifest RUNS.json --timings TIMINGS.json --out DIR [--block 4]
       [--min-coverage 0.1] [--white-lpm WHITE_RENDER.exr --black-lpm BLACK_RENDER.exr]
-      [--hd-pixels N] [--md TABLE.md] [--side-by-side PNG]
+      [--hd 1920x1080] [--md TABLE.md] [--side-by-side PNG] [--diff-scale 0.05]
       Relative L1 of every image against the reference over the pixels the volume covers
       (reference alpha >= min coverage), per pixel and on BxB block means; the reference's
-      own noise; a fit err^2 = a / spp + b of the Cycles ladder and t = t0 + c spp of its
-      times; the Cycles time needed to reach each lpmbake setting's error; the same
-      extrapolated to HD. Prints a markdown report (also to --md) and writes PNG previews.
+      own noise; a fit err^2 = a (1/spp + 1/N) + beta of the Cycles ladder (N: the
+      reference's spp) and t = t0 + c spp of its times; the Cycles time needed to reach
+      each lpmbake setting's error; the same extrapolated to HD; Cycles' alpha against
+      lpmbake render's coverage 1 - T (from renders with a white and no environment).
+      Prints a markdown report (also to --md), writes DIR/report.json and PNG previews.
+      RUNS.json: {"lpmbake": [{"setting", "options", "bake_s", "render_s", "render_hd_s",
+      "image"}, ...]}.
 
 Errors: one line `cycles_side_by_side: error: ...`, exit 1 (usage) or 2 (input/failure).
 """
@@ -412,15 +416,18 @@ def rel_l1(img, ref, mask):
     return num / den if den > 0 else float("inf")
 
 
-def fit_error(spps, errs):
-    """Least squares of err^2 = a / spp + b (b >= 0); returns a, b."""
-    x = 1.0 / np.asarray(spps, dtype=np.float64)
+def fit_error(spps, errs, ref_spp):
+    """Weighted least squares (relative residuals) of err^2 = a (1/spp + 1/N) + beta, N the
+    reference's spp, beta >= 0: independent noise of the image (a/spp) and of the reference
+    (a/N) plus anything that does not fall with the samples (beta, ideally 0). Returns a, beta."""
+    x = 1.0 / np.asarray(spps, dtype=np.float64) + 1.0 / ref_spp
     y = np.asarray(errs, dtype=np.float64) ** 2
-    A = np.stack([x, np.ones_like(x)], axis=1)
-    (a, b), *_ = np.linalg.lstsq(A, y, rcond=None)
-    if b < 0:                       # refit through the origin
-        a, b = float((x * y).sum() / (x * x).sum()), 0.0
-    return float(a), float(b)
+    w = 1.0 / y
+    A = np.stack([x * w, w], axis=1)
+    (a, beta), *_ = np.linalg.lstsq(A, y * w, rcond=None)
+    if beta < 0:                    # refit with beta = 0
+        a, beta = float((x * w * y * w).sum() / ((x * w) ** 2).sum()), 0.0
+    return float(a), float(beta)
 
 
 def fit_time(spps, secs, t0=None):
@@ -448,6 +455,10 @@ def fmt_s(s):
     return "%.2f" % s
 
 
+def fmt_ratio(x):
+    return "%.0f" % x if x >= 100 else "%.1f" % x if x >= 1 else "%.2g" % x
+
+
 def cmd_compare(argv):
     p = Parser(prog=PROG + " compare")
     p.add_argument("cmd")
@@ -461,6 +472,8 @@ def cmd_compare(argv):
     p.add_argument("--hd", type=size, default=(1920, 1080))
     p.add_argument("--md")
     p.add_argument("--side-by-side")
+    p.add_argument("--diff-scale", type=float, default=0.05,
+                   help="difference images: full red/blue at this share of the reference's 99.5th percentile")
     a = p.parse_args(argv)
     with open(a.manifest) as f:
         man = json.load(f)
@@ -566,17 +579,18 @@ def cmd_compare(argv):
     fits = {}
     if len(ladder) >= 2:
         spps = [r["spp"] for r in ladder]
-        for key in ("err_px", "err_blk"):
-            fits[key] = fit_error(spps, [r[key] for r in ladder])
         for key, label in (("err_px", "pixel"), ("err_blk", "blocks")):
+            fits[key] = fit_error(spps, [r[key] for r in ladder], ref_spp)
             ca, cb = fits[key]
-            out("- from the fit err^2 = a/spp + b of the ladder (%s): a = %.4g, b = %.4g: the reference's "
-                "noise sqrt(a/%d) = %.4f, the fit's floor sqrt(b) = %.4f (sqrt(b) above sqrt(a/%d) means "
-                "a bias between the ladder and the reference, or noise that is not 1/spp)" % (
-                    label, ca, cb, ref_spp, math.sqrt(ca / ref_spp), math.sqrt(cb), ref_spp))
+            out("- from the fit err^2 = a (1/spp + 1/%d) + beta of the ladder (%s; relative residuals): "
+                "a = %.4g, beta = %.3g: the reference's noise sqrt(a/%d) = %.4f; Cycles' own error "
+                "sqrt(a/spp); sqrt(beta) = %.4f is what does not fall with the samples (0 for "
+                "independent unbiased renders)" % (ref_spp, label, ca, cb, ref_spp, math.sqrt(ca / ref_spp),
+                                                    math.sqrt(cb)))
     out()
     report["noise"] = [{"from_spp": r["spp"], "pixel": e1, "blocks": e2} for r, e1, e2 in noise_est]
-    report["fits"] = {k: {"a": v[0], "b": v[1]} for k, v in fits.items()}
+    report["fits"] = {k: {"a": v[0], "beta": v[1], "ref_noise": math.sqrt(v[0] / ref_spp)}
+                      for k, v in fits.items()}
 
     # Time to reach lpmbake's error.
     if len(ladder) >= 2 and lpms:
@@ -591,46 +605,46 @@ def cmd_compare(argv):
         hd_cov = (a.hd[1] / float(H)) ** 2
         out("### Cycles time to match lpmbake's error")
         out()
-        out("spp = a / (err_lpmbake^2 - b): the Cycles sample count whose expected error against this "
-            "reference equals lpmbake's (a, b from the ladder fit above; b holds the reference's own "
-            "noise, which lpmbake's measured error also contains). HD: %dx%d, same vertical field of "
-            "view; Cycles' sample time scaled by the pixel count (x%.2f; an upper bound: the extra "
-            "pixels of a wider frame are mostly background, scaling by (%d/%d)^2 = %.2f gives the "
-            "lower bound in brackets), its per-render overhead t0 kept; lpmbake's bake as measured, "
-            "its render %s. EXTRAPOLATED, not rendered at HD by Cycles." % (
-                a.hd[0], a.hd[1], hd_ratio, a.hd[1], H, hd_cov,
+        out("Both errors against the truth: lpmbake's measured error minus the reference's noise in "
+            "quadrature, e^2 = err^2 - a/%d, and Cycles' sqrt(a/spp), so spp = a / e^2 (a from the fit "
+            "above). Where lpmbake's error is not clearly above the reference's noise (err^2 < 2 a/%d) "
+            "it is not resolved by this reference: the table gives the lower bound spp >= a / err^2 "
+            "(all of the measured error counted as lpmbake's) and marks it >=. HD: %dx%d, same vertical "
+            "field of view; Cycles' sample time scaled by the pixel count (x%.2f; an upper bound: the "
+            "extra pixels of a wider frame are mostly background; scaling by (%d/%d)^2 = %.2f gives the "
+            "value in brackets), its per-render overhead t0 kept; lpmbake's bake as measured, its render "
+            "%s. The HD Cycles times are EXTRAPOLATED, not rendered." % (
+                ref_spp, ref_spp, a.hd[0], a.hd[1], hd_ratio, a.hd[1], H, hd_cov,
                 "measured at HD" if any(r.get("render_hd_s") for r in lpms) else
                 "scaled by the pixel count (extrapolated)"))
         out()
-        out("| lpmbake setting | metric | lpmbake error | Cycles spp needed | Cycles s | lpmbake s | ratio | "
-            "HD Cycles s | HD lpmbake s | HD ratio |")
+        out("| lpmbake setting | metric | lpmbake error: measured / less the reference's noise | Cycles spp "
+            "needed | Cycles s | lpmbake s | ratio | HD Cycles s | HD lpmbake s | HD ratio |")
         out("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
         report["match"] = []
         for r in lpms:
             for key, label in (("err_px", "pixel"), ("err_blk", "blocks")):
-                ca, cb = fits[key]
-                e2 = r[key] ** 2 - cb
-                spp = ca / e2 if e2 > 0 else float("inf")
+                ca, _ = fits[key]
+                noise2 = ca / ref_spp
+                resolved = r[key] ** 2 >= 2 * noise2
+                e2 = r[key] ** 2 - noise2 if resolved else r[key] ** 2
+                spp = ca / e2
+                ge = "" if resolved else ">= "
                 tc = t0 + c * spp
                 tl = r["seconds"]
                 hd_render = r.get("render_hd_s") or r["render_s"] * hd_ratio
                 tl_hd = r["bake_s"] + hd_render
                 tc_hd = t0 + c * spp * hd_ratio
                 tc_hd_lo = t0 + c * spp * hd_cov
-                if math.isfinite(spp):
-                    spp_s = "%.0f" % spp
-                    if spp > ref_spp:
-                        spp_s += " (more than the reference: limited by its noise)"
-                else:
-                    spp_s = "inf (lpmbake's error is within the ladder's floor)"
-                out("| %s | %s | %.4f | %s | %s | %s | %s | %s [%s] | %s | %s |" % (
-                    r["setting"], label, r[key], spp_s, fmt_s(tc), fmt_s(tl),
-                    ("%.1f" % (tc / tl)) if math.isfinite(tc) else "n/a",
-                    fmt_s(tc_hd), fmt_s(tc_hd_lo), fmt_s(tl_hd),
-                    ("%.1f" % (tc_hd / tl_hd)) if math.isfinite(tc_hd) else "n/a"))
-                report["match"].append({"setting": r["setting"], "metric": label, "err": r[key], "spp": spp,
-                                        "cycles_s": tc, "lpmbake_s": tl, "cycles_hd_s": tc_hd,
-                                        "cycles_hd_s_lower": tc_hd_lo, "lpmbake_hd_s": tl_hd})
+                err_s = "%.4f / %s" % (r[key], ("%.4f" % math.sqrt(e2)) if resolved else "unresolved")
+                out("| %s | %s | %s | %s%.0f | %s%s | %s | %s%s | %s%s [%s] | %s | %s%s |" % (
+                    r["setting"], label, err_s, ge, spp, ge, fmt_s(tc), fmt_s(tl), ge, fmt_ratio(tc / tl),
+                    ge, fmt_s(tc_hd), fmt_s(tc_hd_lo), fmt_s(tl_hd), ge, fmt_ratio(tc_hd / tl_hd)))
+                report["match"].append({"setting": r["setting"], "metric": label, "err": r[key],
+                                        "err_less_ref_noise": math.sqrt(e2) if resolved else None,
+                                        "resolved": resolved, "spp": spp, "cycles_s": tc, "lpmbake_s": tl,
+                                        "cycles_hd_s": tc_hd, "cycles_hd_s_coverage_scaled": tc_hd_lo,
+                                        "lpmbake_hd_s": tl_hd})
         out()
 
     # Coverage: lpmbake render's 1 - T (with a white environment) against Cycles' alpha.
@@ -648,7 +662,8 @@ def cmd_compare(argv):
 
     # Previews: one exposure for all (the reference's 99.5th percentile of the volume's
     # pixels maps to 0.9), sRGB; differences (image - reference) in luminance, red = brighter,
-    # blue = darker, full scale = 20% of that percentile.
+    # blue = darker, full scale = --diff-scale of that percentile (per pixel in *_diff.png,
+    # on block means in the side by side).
     lum = lambda x: x @ np.array([0.2126, 0.7152, 0.0722])   # noqa: E731
     peak = float(np.percentile(lum(ref)[mask], 99.5)) or 1.0
     expo = 0.9 / peak
@@ -656,8 +671,11 @@ def cmd_compare(argv):
     def disp(x):
         return srgb(x * expo)
 
-    def diff(x):
-        d = (lum(x) - lum(ref)) / (0.2 * peak)
+    def diff(x, block=1):
+        d = (lum(x) - lum(ref)) / (a.diff_scale * peak)
+        if block > 1:
+            d = np.kron(block_mean(d, block), np.ones((block, block)))
+            d = np.pad(d, ((0, H - d.shape[0]), (0, W - d.shape[1])))
         rgb = np.zeros(d.shape + (3,))
         rgb[..., 0] = np.clip(d, 0, 1)
         rgb[..., 2] = np.clip(-d, 0, 1)
@@ -683,15 +701,19 @@ def cmd_compare(argv):
         lp = next((r for r in lpms if r["setting"] == "default"), lpms[0])
         cy = min(ladder, key=lambda r: abs(math.log(max(r["err_px"], 1e-9) / max(lp["err_px"], 1e-9)))) \
             if ladder else None
-        panels = [disp(ref), disp(lp["img"])] + ([disp(cy["img"])] if cy else []) + [diff(lp["img"])]
+        panels = [disp(ref), disp(lp["img"])] + ([disp(cy["img"])] if cy else []) + [diff(lp["img"], B)] + \
+            ([diff(cy["img"], B)] if cy else [])
         gap = np.ones((H, 2, 3))
         strip = [panels[0]]
         for pnl in panels[1:]:
             strip += [gap, pnl]
         write_png(a.side_by_side, np.concatenate(strip, axis=1))
-        out("Side by side (%s): Cycles reference %d spp | lpmbake %s | Cycles %s spp | lpmbake - reference "
-            "(luminance, red brighter, blue darker, full scale 20%% of the reference's 99.5th percentile)." % (
-                os.path.basename(a.side_by_side), ref_spp, lp["setting"], cy["spp"] if cy else "-"))
+        out("Side by side (%s): Cycles reference %d spp | lpmbake %s | Cycles %s spp (the rung closest in "
+            "per-pixel error) | lpmbake - reference | Cycles - reference; differences of luminance on %dx%d "
+            "block means, red brighter, blue darker, full scale %g%% of the reference's 99.5th percentile; "
+            "one exposure for all (that percentile at 0.9), sRGB." % (
+                os.path.basename(a.side_by_side), ref_spp, lp["setting"], cy["spp"] if cy else "-", B, B,
+                100 * a.diff_scale))
         out()
     text = "\n".join(lines)
     print(text, flush=True)

@@ -3,7 +3,7 @@
 # one run (docs/cycles_comparison.md):
 #
 #   1. a volume: the procedural ~1M-voxel plume (`lpm_make_volume plume --res 124`) or --vdb;
-#   2. lpmbake: one bake per setting (preview, cheap, default, fine; --setting), timed, then
+#   2. lpmbake: one bake per setting (below; --setting), timed, then
 #      `lpmbake render` of each bake with the same camera, timed; all in Linear Rec.709
 #      (--env-colorspace lin_rec709 --working-space lin_rec709: no colour conversion);
 #   3. Cycles (Blender 3.4, CPU) path-traces the PHYSICAL volume (not the bake): sigma_t =
@@ -23,11 +23,18 @@
 #       [--extra-spp N] [--density-scale 0.25] [--albedo 0.9] [--g 0] [--env SKY]
 #       [--fov-y 40] [--eye X,Y,Z --target X,Y,Z --up X,Y,Z] [--step-rate 0.5] [--bounces 256]
 #       [--setting NAME='LPMBAKE OPTIONS' ...] [--no-hd] [--threads N]
-#       [--max-brightness-diff 0.1] [--max-coverage-diff 0.05]
-#       [--out DIR] [--lpmbake PATH] [--make-volume PATH]
+#       [--max-brightness-diff 0.1] [--max-coverage-diff 0.02]
+#       [--out DIR] [--lpmbake PATH] [--make-volume PATH] [--cycles-from DIR]
+#
+# Settings: `--quality preview`, `default`, `production` when `lpmbake --help` lists
+# --quality, else the option sets preview (--solve-scale 0.5 --directions-per-face 2
+# --rays-per-voxel 1), cheap (--directions-per-face 2 --rays-per-voxel 1), default, fine
+# (--directions-per-face 8 --rays-per-voxel 3). --cycles-from DIR reuses the Cycles renders
+# of an earlier run in DIR (same camera, ladder, reference spp, step rate, bounces, density
+# scale, albedo, g: checked) to compare another lpmbake against them without re-rendering.
 #
 # --quick: a small plume (--res 32, 16k voxels), 48x48 pixels, ladder 4,16, reference 64,
-# no HD render: a smoke test of the whole pipeline (about 40 s on 2 cores). Exits non-zero
+# no HD render: a smoke test of the whole pipeline (about 30 s on 2 cores). Exits non-zero
 # on any failure, also when an lpmbake image's overall brightness differs from the
 # reference's by more than --max-brightness-diff or lpmbake render's coverage (1 - T)
 # differs from the reference's alpha by more than --max-coverage-diff on average (a wrong
@@ -39,7 +46,7 @@ NAME=cycles_side_by_side
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 PY=$ROOT/scripts/bench/cycles_side_by_side.py
 abspath() { case $1 in /*) echo "$1" ;; *) echo "$PWD/$1" ;; esac; }
-die() { echo "$NAME: error: $*" >&2; exit "${2:-1}"; }
+die() { echo "$NAME: error: $1" >&2; exit "${2:-1}"; }   # die MESSAGE [EXIT CODE]
 usage() { sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; }
 
 LPMBAKE=$ROOT/build/baker/lpmbake
@@ -48,7 +55,7 @@ OUT=$ROOT/out/bench/cycles
 ENV=$ROOT/data/env/rooftop_small.hdr
 VDB=""; GRID=""; RES=124; W=192; H=192; LADDER=16,64,256,1024; REF=4096; EXTRA=0
 DS=0.25; ALBEDO=0.9; G=0; FOV=40; EYE=""; TARGET=""; UP=""; STEP=0.5; BOUNCES=256
-THREADS=0; QUICK=0; HD=1; MAXB=0.1; MAXCOV=0.05
+THREADS=0; QUICK=0; HD=1; MAXB=0.1; MAXCOV=0.02; CYCLES_FROM=""
 SETTINGS=()
 set_w=0; set_h=0; set_ladder=0; set_ref=0; set_res=0
 while [ $# -gt 0 ]; do
@@ -84,6 +91,7 @@ while [ $# -gt 0 ]; do
     --max-brightness-diff) MAXB=$v ;;
     --max-coverage-diff) MAXCOV=$v ;;
     --out) OUT=$(abspath "$v") ;;
+    --cycles-from) CYCLES_FROM=$(abspath "$v") ;;
     --lpmbake) LPMBAKE=$(abspath "$v") ;;
     --make-volume) MAKEVOL=$(abspath "$v") ;;
     *) die "unknown option '$opt' (--help)" ;;
@@ -97,12 +105,6 @@ if [ "$QUICK" = 1 ]; then
   [ $set_ref = 1 ] || REF=64
   HD=0
 fi
-if [ ${#SETTINGS[@]} -eq 0 ]; then
-  SETTINGS=("preview=--solve-scale 0.5 --directions-per-face 2 --rays-per-voxel 1"
-            "cheap=--directions-per-face 2 --rays-per-voxel 1" "default="
-            "fine=--directions-per-face 8 --rays-per-voxel 3")
-  [ "$QUICK" = 0 ] || SETTINGS=("cheap=--directions-per-face 2 --rays-per-voxel 1" "default=")
-fi
 for n in "$W" "$H" "$REF" "$RES" "$BOUNCES" "$EXTRA" "$THREADS"; do
   [[ $n =~ ^[0-9]+$ ]] || die "'$n' is not a non-negative integer"
 done
@@ -112,6 +114,22 @@ done
 command -v blender > /dev/null 2>&1 || { echo "$NAME: SKIP: blender is not on PATH"; exit 77; }
 [ -x "$LPMBAKE" ] || die "lpmbake '$LPMBAKE' not found or not executable (build it, or --lpmbake PATH)" 2
 [ -f "$ENV" ] || die "environment '$ENV' not found" 2
+if [ ${#SETTINGS[@]} -eq 0 ]; then
+  help=$("$LPMBAKE" --help 2>&1 || true)
+  if [[ $help == *--quality* ]]; then        # the presets, where this lpmbake has them
+    SETTINGS=("preview=--quality preview" "default=--quality default" "production=--quality production")
+    [ "$QUICK" = 0 ] || SETTINGS=("preview=--quality preview" "default=--quality default")
+  else
+    SETTINGS=("preview=--solve-scale 0.5 --directions-per-face 2 --rays-per-voxel 1"
+              "cheap=--directions-per-face 2 --rays-per-voxel 1" "default="
+              "fine=--directions-per-face 8 --rays-per-voxel 3")
+    [ "$QUICK" = 0 ] || SETTINGS=("cheap=--directions-per-face 2 --rays-per-voxel 1" "default=")
+  fi
+fi
+for s in "${SETTINGS[@]}"; do
+  name=${s%%=*}
+  if ! [[ $name =~ ^[A-Za-z0-9_-]+$ ]] || [ "$name" = "$s" ]; then die "--setting '$s' is not NAME=OPTIONS"; fi
+done
 [ -n "$VDB" ] || [ -x "$MAKEVOL" ] || die "lpm_make_volume '$MAKEVOL' not found (build it, --make-volume PATH, or --vdb)" 2
 [ -z "$VDB" ] || [ -f "$VDB" ] || die "volume '$VDB' not found" 2
 
@@ -147,7 +165,6 @@ THREADOPT=()
 names=(); bake_s=(); opts=()
 for s in "${SETTINGS[@]}"; do
   name=${s%%=*}; o=${s#*=}
-  [[ $name =~ ^[A-Za-z0-9_-]+$ ]] && [ "$name" != "$s" ] || die "--setting '$s' is not NAME=OPTIONS"
   # shellcheck disable=SC2206
   extra=($o)
   t0=$(now)
@@ -210,7 +227,43 @@ done
 run render_white.log "$LPMBAKE" render "bake_$first.vdb" "${CAM[@]}" --size "${W}x$H" --step "$STEP" \
   --env white.exr "${THREADOPT[@]}" -o "lpmbake_${first}_white.exr"
 
-# 5. Cycles: warm-up, ladder, (extra,) reference; progress lines pass through.
+# 5. Cycles: warm-up, ladder, (extra,) reference; progress lines pass through. With
+# --cycles-from DIR: DIR's renders, when they were made with the same camera and numbers.
+if [ -n "$CYCLES_FROM" ]; then
+  python3 - "$CYCLES_FROM" "$LADDER" "$REF" "$STEP" "$BOUNCES" "bake_$first.json" <<'PY' ||
+import json, os, sys
+d, ladder, ref, step, bounces, sidecar = sys.argv[1:]
+t = json.load(open(os.path.join(d, "cycles_timings.json")))
+old = json.load(open(os.path.join(d, "camera.json")))
+new = json.load(open("camera.json"))
+meta = json.load(open(sidecar))["metadata"]
+bad = []
+for k in ("eye", "target", "up"):
+    if max(abs(a - b) for a, b in zip(old[k], new[k])) > 1e-4 * (1 + max(abs(x) for x in new[k])):
+        bad.append("camera %s" % k)
+for k in ("fov_y", "width", "height"):
+    if old[k] != new[k]:
+        bad.append("camera %s" % k)
+runs = t["renders"]
+if sorted(r["spp"] for r in runs if r["kind"] == "ladder") != sorted(int(x) for x in ladder.split(",")):
+    bad.append("ladder")
+if [r["spp"] for r in runs if r["kind"] == "reference"] != [int(ref)]:
+    bad.append("reference spp")
+if abs(t["step_rate"] - float(step)) > 1e-9 or t["bounces"] != int(bounces):
+    bad.append("step rate or bounces")
+if abs(t["density_scale"] - meta["lpm:density_scale"]) > 1e-6 or abs(t["g"] - meta["lpm:g"]) > 1e-6 or \
+        max(abs(a - b) for a, b in zip(t["albedo"], meta["lpm:albedo"])) > 1e-6:
+    bad.append("density scale, albedo or g")
+if not all(os.path.isfile(r["image"]) for r in runs):
+    bad.append("missing images")
+if bad:
+    print("cycles_side_by_side: error: --cycles-from %s: other %s" % (d, ", ".join(bad)), file=sys.stderr)
+    sys.exit(1)
+PY
+    die "the renders in '$CYCLES_FROM' do not fit this run (or are missing)" 1
+  [ "$CYCLES_FROM" -ef "$OUT" ] || cp "$CYCLES_FROM/cycles_timings.json" cycles_timings.json
+  echo "$NAME: Cycles: reusing the renders of $CYCLES_FROM (same camera, ladder, reference, medium)"
+else
 extra_txt=""; [ "$EXTRA" = 0 ] || extra_txt=", extra $EXTRA spp"
 echo "$NAME: Cycles: ladder $LADDER, reference $REF spp$extra_txt, ${W}x$H (log: $OUT/logs/cycles.log)"
 t_launch=$(now)
@@ -226,6 +279,7 @@ set -e
 if [ $rc -ne 0 ]; then
   tail -n 20 logs/cycles.log >&2
   die "Cycles render failed (exit $rc; log: $OUT/logs/cycles.log)" 2
+fi
 fi
 
 # 6. Compare, tables, previews.
