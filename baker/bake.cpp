@@ -113,6 +113,7 @@ VerifySettings verifySettings(const BakeOptions& o) {
     VerifySettings v;
     v.probes = o.verifyProbes > 0 || o.maxError < 0 ? o.verifyProbes : 64;
     v.pathsPerProbe = o.verifyPaths;
+    v.seed = o.verifySeed;
     return v;
 }
 
@@ -135,8 +136,8 @@ void checkOptions(const BakeOptions& o) {
         }
         o.solver.validate();
         if (o.verifyProbes != 0 || o.maxError >= 0) verifySettings(o).validate();
-        else if (o.verifyPaths != VerifySettings{}.pathsPerProbe)
-            throw UsageError("--verify-paths needs --verify N or --max-error E");
+        else if (o.verifyPaths != VerifySettings{}.pathsPerProbe || o.verifySeed != VerifySettings{}.seed)
+            throw UsageError("--verify-paths and --verify-seed need --verify N or --max-error E");
     } catch (const SettingError& e) {
         throw UsageError(flagOf(e.field()) + " " + e.rule());
     }

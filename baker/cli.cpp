@@ -373,6 +373,9 @@ void addVerifyOptions(CLI::App& app, Args& a) {
         ->type_name("N")
         ->group(gV);
     app.add_option("--verify-paths", a.b.verifyPaths, "Monte Carlo paths per probe")->default_val(4096)->group(gV);
+    app.add_option("--verify-seed", a.b.verifySeed, "seed of the probes (other voxels and paths)")
+        ->default_val(a.b.verifySeed)
+        ->group(gV);
     app.add_option("--max-error", a.maxError,
                    "E: exit " + std::to_string(kExitVerify) +
                        " when the error is above E with 95% confidence (the interval's low end > E); the bake "

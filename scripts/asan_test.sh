@@ -36,5 +36,6 @@ skip_regex="^($(IFS='|'; echo "${ASAN_SKIP[*]}"))\$"
 # The farm tests (label farm) drive the release lpmbake through Slurm in the plain run;
 # the sequence code they call is covered here by tests/baker/sequence_test.
 # The Blender test (label blender) spends its time in Blender's renderer: plain run only.
-ctest --test-dir build-asan --output-on-failure -j"${JOBS:-2}" --timeout 1500 -LE "farm|blender" \
+# The study's smoke test (label study) needs the benchmarks, which this build leaves out.
+ctest --test-dir build-asan --output-on-failure -j"${JOBS:-2}" --timeout 1500 -LE "farm|blender|study" \
   -E "$skip_regex"

@@ -3,7 +3,7 @@
 #   scripts/install_deps.sh          what building and the unit tests need
 #   scripts/install_deps.sh --test   also what the whole suite and CI's checks need: Debian's
 #                                    blender (tests/blender), clang-format and clang-tidy
-#                                    (scripts/lint.sh)
+#                                    (scripts/lint.sh), python3-matplotlib (tests/accuracy)
 # Quirks from docs (ecosystem notes): libopenvdb-dev needs libboost-iostreams-dev for its CMake module.
 set -euo pipefail
 PKGS=(build-essential cmake ccache pkg-config
@@ -14,7 +14,8 @@ PKGS=(build-essential cmake ccache pkg-config
       slurm-wlm munge procps)   # test only: tests/farm/slurm_test.sh runs a one-node Slurm cluster
 if [ "${1:-}" = "--test" ]; then
   PKGS+=(blender               # tests/blender: the Blender import script against lpmbake render
-         clang-format clang-tidy)  # scripts/lint.sh
+         clang-format clang-tidy   # scripts/lint.sh
+         python3-matplotlib)       # scripts/accuracy/plot.py (the study's smoke test)
 fi
 missing=()
 for p in "${PKGS[@]}"; do

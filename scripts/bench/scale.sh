@@ -2,17 +2,19 @@
 # Time and memory against the active voxels (docs/performance.md): default bakes of
 # procedural volumes generated here (no large files in the repo), each a separate process
 # so peak RSS is its own.
-#   scripts/bench/scale.sh [--quick] [--threads N] [--original PATH-TO-AN-OLDER-lpmbake]
+#   scripts/bench/scale.sh [--quick] [--large] [--threads N] [--original PATH-TO-AN-OLDER-lpmbake]
+# --large adds the ~50M-active-voxel cloud in a 1024^3 box (about 10 minutes and 9 GB here).
 # Prints a markdown table; volumes and bakes go to out/bench/scale/.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-quick=0; threads=0; original=""
+quick=0; large=0; threads=0; original=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --quick) quick=1 ;;
+    --large) large=1 ;;
     --threads) threads="$2"; shift ;;
     --original) original="$2"; shift ;;
-    *) echo "usage: scale.sh [--quick] [--threads N] [--original LPMBAKE]" >&2; exit 2 ;;
+    *) echo "usage: scale.sh [--quick] [--large] [--threads N] [--original LPMBAKE]" >&2; exit 2 ;;
   esac
   shift
 done
@@ -29,6 +31,9 @@ scenes=(
 )
 if [ "$quick" = 0 ]; then
   scenes+=("cloud-8M|cloud --res 256|--albedo 0.9 --density-scale 0.05")
+fi
+if [ "$large" = 1 ]; then
+  scenes+=("cloud-50M-in-1024^3|cloud --res 1024|--albedo 0.9 --density-scale 0.0125")
 fi
 
 echo "| scene | active voxels | box voxels | bake | threads | passes (coarse) | solve s | total s | peak RSS MiB | bytes/active voxel above 200 MB |"
