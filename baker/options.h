@@ -83,6 +83,7 @@ struct BakeOptions {
     int sunTerm = -1;         ///< exact sun term: -1 auto (when g != 0), 0 off, 1 on (core/sun_term.h)
     int verifyProbes = 0;     ///< --verify N: Monte Carlo probes after the bake (core/verify.h); 0 = none
     int verifyPaths = 4096;   ///< paths per probe
+    std::uint64_t verifySeed = VerifySettings{}.seed;  ///< which voxels are drawn, and their paths
     double maxError = -1;     ///< --max-error E (negative: none): kExitVerify when the estimate's lower bound exceeds E
     std::string statsPath;
     std::string sidecarPath;  ///< the metadata as JSON beside the bake (vdb_io/sidecar.h); may be empty

@@ -11,9 +11,8 @@ const std::vector<QualityPreset>& qualityPresets() {
     static const std::vector<QualityPreset> presets = {
         {"preview", 2, 1, 1e-2, -1, "n = 2, r = 1, tolerance 1e-2: about 5% error, 2-5x faster than default"},
         {"default", 4, 2, 1e-3, -1, "n = 4, r = 2, tolerance 1e-3 (the defaults): 1-2% error"},
-        {"production", 6, 2, 1e-4, 0,
-         "n = 6, r = 2, tolerance 1e-4, full resolution for every order (--multires off): within 1%, "
-         "5-30x the default's time"},
+        {"production", 6, 2, 1e-4, -1, "n = 6, r = 2, tolerance 1e-4: within 1% where the voxels are thin, 2-5x the "
+                                        "default's time"},
     };
     return presets;
 }

@@ -42,6 +42,8 @@ def pareto(rows, key):
 def plot_scene(rows, scene, out_dir):
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     default = next((r for r in rows if r["setting"] == "default"), None)
+    for ax in axes:
+        ax.set_prop_cycle(color=plt.cm.tab20.colors)  # more knobs than the default 10 colours
     for ax, key, noise, title in ((axes[0], "band0_corrected", "band0_noise", "voxels: band-0 RMS error (MC noise removed)"),
                                   (axes[1], "block_l1", "block_l1_noise", "image: relative L1 over 4x4 blocks")):
         knobs = []

@@ -27,7 +27,7 @@ TEST(Quality, PresetsSetTheirKnobsUnlessGiven) {
     applyQuality("production", p, {"--directions-per-face"});
     EXPECT_EQ(p.directionsPerFace, 3);
     EXPECT_EQ(p.tolerance, 1e-4);
-    EXPECT_EQ(p.multires, 0);
+    EXPECT_EQ(p.multires, -1);
     // "default" is the library's defaults.
     LpmSettings d;
     applyQuality("default", d, {});
