@@ -130,7 +130,8 @@ inline const MetaKey verifyConfidence{"lpm:verify_confidence", MetaType::Double,
 inline const MetaKey verifyProbes{"lpm:verify_probes", MetaType::Int, false, false, "Monte Carlo probes"};
 inline const MetaKey verifyPaths{"lpm:verify_paths", MetaType::Int, false, false, "paths per probe"};
 inline const MetaKey verifyNoise{"lpm:verify_mc_noise", MetaType::Double, false, false, "the probes' own noise"};
-inline const MetaKey verifySeconds{"lpm:verify_s", MetaType::Double, false, false, "time of the check"};
+inline const MetaKey verifySeconds{"lpm:time_verify_s", MetaType::Double, false, false,
+                                   "time of the check (volatile: not in the content digest)"};
 inline const MetaKey verifyMaxError{"lpm:verify_max_error", MetaType::Double, false, false, "--max-error"};
 inline const MetaKey verifyFailed{"lpm:verify_failed", MetaType::Bool, false, false,
                                   "the error is above --max-error: re-bake with a higher --quality"};

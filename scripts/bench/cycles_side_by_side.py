@@ -76,21 +76,11 @@ def log(msg):
     print(PROG + ": " + msg, flush=True)
 
 
-def vec3(text):
-    try:
-        v = [float(t) for t in text.split(",")]
-    except ValueError:
-        v = []
-    if len(v) != 3 or not all(math.isfinite(c) for c in v):
-        raise argparse.ArgumentTypeError("'%s' is not X,Y,Z" % text)
-    return v
+vec3 = lpm_import._vec3  # "X,Y,Z" -> [x, y, z] (argparse type), as the import script parses it
 
 
 def size(text):
-    try:
-        w, h = (int(t) for t in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError("'%s' is not WxH" % text)
+    w, h = lpm_import._size(text)
     if not (1 <= w <= 16384 and 1 <= h <= 16384):
         raise argparse.ArgumentTypeError("'%s': 1..16384 pixels per side" % text)
     return w, h

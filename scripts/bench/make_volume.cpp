@@ -6,7 +6,10 @@
 //       one small noisy puff (radius N/16), or two at opposite corners of an N^3 box:
 //       time must follow the active voxels, not the box
 //   lpm_make_volume cloud OUT.vdb [--res N]
-//       a dense cumulus-like cloud filling most of an N^3 box (N = 1024: ~50M active voxels)
+//       a dense cumulus-like cloud filling most of an N^3 box (about 0.25 N^3 active voxels:
+//       N = 256: 4.2M, N = 585: 50M, N = 1024: 268M)
+//   --box B (any kind): also one faint voxel at (0,0,0) and one at (B-1,B-1,B-1), so the
+//       active bounding box is B^3 (cloud --res 585 --box 1024: 50M voxels in a 1024^3 box)
 // Density is fBm value noise shaped by an envelope; voxels below 1e-3 stay inactive.
 #include <openvdb/openvdb.h>
 
@@ -85,7 +88,8 @@ float cloudDensity(int x, int y, int z, int n, std::uint64_t seed) {
 }
 
 int usage() {
-    std::fprintf(stderr, "usage: lpm_make_volume plume|puffs|cloud OUT.vdb [--res N] [--count 1|2] [--seed S]\n");
+    std::fprintf(stderr,
+                 "usage: lpm_make_volume plume|puffs|cloud OUT.vdb [--res N] [--count 1|2] [--seed S] [--box B]\n");
     return 2;
 }
 
@@ -94,16 +98,17 @@ int usage() {
 int main(int argc, char** argv) {
     if (argc < 3) return usage();
     const std::string kind = argv[1], out = argv[2];
-    int n = kind == "plume" ? 112 : (kind == "puffs" ? 512 : 256), count = 2;
+    int n = kind == "plume" ? 112 : (kind == "puffs" ? 512 : 256), count = 2, box = 0;
     std::uint64_t seed = 7;
     for (int i = 3; i + 1 < argc; i += 2) {
         const std::string k = argv[i];
         if (k == "--res") n = std::atoi(argv[i + 1]);
         else if (k == "--count") count = std::atoi(argv[i + 1]);
         else if (k == "--seed") seed = std::strtoull(argv[i + 1], nullptr, 10);
+        else if (k == "--box") box = std::atoi(argv[i + 1]);
         else return usage();
     }
-    if (n < 8 || n > 4096 || count < 1 || count > 2) return usage();
+    if (n < 8 || n > 4096 || count < 1 || count > 2 || box < 0 || box > 8192) return usage();
     openvdb::initialize();
     auto grid = openvdb::FloatGrid::create(0.0f);
     grid->setName("density");
@@ -138,6 +143,10 @@ int main(int argc, char** argv) {
                 }
     } else {
         return usage();
+    }
+    if (box > 0) {
+        acc.setValue(openvdb::Coord(0, 0, 0), 0.01f);
+        acc.setValue(openvdb::Coord(box - 1, box - 1, box - 1), 0.01f);
     }
     grid->pruneGrid();
     const openvdb::CoordBBox box = grid->evalActiveVoxelBoundingBox();

@@ -3,18 +3,20 @@
 # procedural volumes generated here (no large files in the repo), each a separate process
 # so peak RSS is its own.
 #   scripts/bench/scale.sh [--quick] [--large] [--threads N] [--original PATH-TO-AN-OLDER-lpmbake]
-# --large adds the ~50M-active-voxel cloud in a 1024^3 box (about 10 minutes and 9 GB here).
+# --large adds the 50M-active-voxel cloud in a 1024^3 box (about 10 minutes and 9 GB here).
+# --only NAME runs that scene alone.
 # Prints a markdown table; volumes and bakes go to out/bench/scale/.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-quick=0; large=0; threads=0; original=""
+quick=0; large=0; threads=0; original=""; only=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --quick) quick=1 ;;
     --large) large=1 ;;
+    --only) only="$2"; shift ;;
     --threads) threads="$2"; shift ;;
     --original) original="$2"; shift ;;
-    *) echo "usage: scale.sh [--quick] [--large] [--threads N] [--original LPMBAKE]" >&2; exit 2 ;;
+    *) echo "usage: scale.sh [--quick] [--large] [--only NAME] [--threads N] [--original LPMBAKE]" >&2; exit 2 ;;
   esac
   shift
 done
@@ -30,16 +32,17 @@ scenes=(
   "puffs-2-in-512^3|puffs --res 512 --count 2|--albedo 0.9"
 )
 if [ "$quick" = 0 ]; then
-  scenes+=("cloud-8M|cloud --res 256|--albedo 0.9 --density-scale 0.05")
+  scenes+=("cloud-4M|cloud --res 256|--albedo 0.9 --density-scale 0.05")
 fi
 if [ "$large" = 1 ]; then
-  scenes+=("cloud-50M-in-1024^3|cloud --res 1024|--albedo 0.9 --density-scale 0.0125")
+  scenes+=("cloud-50M-in-1024^3|cloud --res 585 --box 1024|--albedo 0.9 --density-scale 0.022")
 fi
 
 echo "| scene | active voxels | box voxels | bake | threads | passes (coarse) | solve s | total s | peak RSS MiB | bytes/active voxel above 200 MB |"
 echo "|---|---|---|---|---|---|---|---|---|---|"
 for line in "${scenes[@]}"; do
   IFS='|' read -r name gen bake <<<"$line"
+  [ -n "$only" ] && [ "$name" != "$only" ] && continue
   vdb="$dir/$name.vdb"
   kind=${gen%% *}; opts=${gen#* }
   # shellcheck disable=SC2086
