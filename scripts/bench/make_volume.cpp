@@ -98,17 +98,17 @@ int usage() {
 int main(int argc, char** argv) {
     if (argc < 3) return usage();
     const std::string kind = argv[1], out = argv[2];
-    int n = kind == "plume" ? 112 : (kind == "puffs" ? 512 : 256), count = 2, box = 0;
+    int n = kind == "plume" ? 112 : (kind == "puffs" ? 512 : 256), count = 2, boxSide = 0;
     std::uint64_t seed = 7;
     for (int i = 3; i + 1 < argc; i += 2) {
         const std::string k = argv[i];
         if (k == "--res") n = std::atoi(argv[i + 1]);
         else if (k == "--count") count = std::atoi(argv[i + 1]);
         else if (k == "--seed") seed = std::strtoull(argv[i + 1], nullptr, 10);
-        else if (k == "--box") box = std::atoi(argv[i + 1]);
+        else if (k == "--box") boxSide = std::atoi(argv[i + 1]);
         else return usage();
     }
-    if (n < 8 || n > 4096 || count < 1 || count > 2 || box < 0 || box > 8192) return usage();
+    if (n < 8 || n > 4096 || count < 1 || count > 2 || boxSide < 0 || boxSide > 8192) return usage();
     openvdb::initialize();
     auto grid = openvdb::FloatGrid::create(0.0f);
     grid->setName("density");
@@ -144,9 +144,9 @@ int main(int argc, char** argv) {
     } else {
         return usage();
     }
-    if (box > 0) {
+    if (boxSide > 0) {
         acc.setValue(openvdb::Coord(0, 0, 0), 0.01f);
-        acc.setValue(openvdb::Coord(box - 1, box - 1, box - 1), 0.01f);
+        acc.setValue(openvdb::Coord(boxSide - 1, boxSide - 1, boxSide - 1), 0.01f);
     }
     grid->pruneGrid();
     const openvdb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
