@@ -79,6 +79,26 @@ std::string settingsDigest(const BakeOptions& o) {
     return hex64(fnv1a(c.data(), c.size()));
 }
 
+namespace {
+
+/// The --verify report (core/verify.h) and --max-error's verdict.
+void putVerify(openvdb::MetaMap& meta, const BakeOptions& o, const BakeSummary& sum) {
+    using namespace bakekey;
+    const VerifyReport& v = sum.verify;
+    putDouble(meta, verifyError, v.error);
+    putDouble(meta, verifyErrorLow, v.low);
+    putDouble(meta, verifyErrorHigh, v.high);
+    putDouble(meta, verifyConfidence, v.confidence);
+    putInt(meta, verifyProbes, v.probes);
+    putInt(meta, verifyPaths, v.pathsPerProbe);
+    putDouble(meta, verifyNoise, v.mcNoise);
+    putDouble(meta, verifySeconds, v.seconds);
+    if (o.maxError >= 0) putDouble(meta, verifyMaxError, o.maxError);
+    putBool(meta, verifyFailed, sum.verifyFailed);
+}
+
+}  // namespace
+
 openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, const LpmResult& res, const EnvInput& env,
                               std::uint64_t sanitizedCount) {
     openvdb::MetaMap meta;
@@ -219,18 +239,7 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
         str(sunTermKey(int(k), SunTermField::Source), t.fromEnvironment ? "environment hot pixel" : "--sun");
         str(sunTermKey(int(k), SunTermField::Grid), sunTransmittanceGridName(int(k)));
     }
-    if (sum.verified) {
-        dbl(verifyError, sum.verify.error);
-        dbl(verifyErrorLow, sum.verify.low);
-        dbl(verifyErrorHigh, sum.verify.high);
-        dbl(verifyConfidence, sum.verify.confidence);
-        i32(verifyProbes, sum.verify.probes);
-        i32(verifyPaths, sum.verify.pathsPerProbe);
-        dbl(verifyNoise, sum.verify.mcNoise);
-        dbl(verifySeconds, sum.verify.seconds);
-        if (o.maxError >= 0) dbl(verifyMaxError, o.maxError);
-        flag(verifyFailed, sum.verifyFailed);
-    }
+    if (sum.verified) putVerify(meta, o, sum);
     str(settings, canonicalSettings(o));
     str(bakekey::settingsDigest, lpm::settingsDigest(o));
     return meta;

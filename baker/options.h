@@ -84,7 +84,7 @@ struct BakeOptions {
     int verifyProbes = 0;     ///< --verify N: Monte Carlo probes after the bake (core/verify.h); 0 = none
     int verifyPaths = 4096;   ///< paths per probe
     std::uint64_t verifySeed = VerifySettings{}.seed;  ///< which voxels are drawn, and their paths
-    double maxError = -1;     ///< --max-error E (negative: none): kExitVerify when the estimate's lower bound exceeds E
+    double maxError = -1;  ///< --max-error E (negative: none): kExitVerify when the estimate's lower bound exceeds E
     std::string statsPath;
     std::string sidecarPath;  ///< the metadata as JSON beside the bake (vdb_io/sidecar.h); may be empty
     std::string commandLine;  ///< recorded in the metadata

@@ -367,7 +367,8 @@ McImage mcRenderImage(const Medium& m, const Lights& lights, const PinholeCamera
                 const Vec3 look = cam.rayDirection(px + rng.uniform(), py + rng.uniform());
                 const RGB Lc = collidedRadiance(c, eyeLocal, look, rng);
                 RGB Lb(0.f);
-                if (lights.env && s.background) Lb = lights.env->lookup(look) * float(c.tracker.transmittance(eyeLocal, c.Rinv * look));
+                if (lights.env && s.background)
+                    Lb = lights.env->lookup(look) * float(c.tracker.transmittance(eyeLocal, c.Rinv * look));
                 for (int k = 0; k < 3; ++k) v[k] = double(Lc[k]) + double(Lb[k]);
                 w.add(v);
             }

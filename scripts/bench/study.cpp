@@ -13,10 +13,9 @@
 //     degrees elevation holding about 60% of the map's power (for the hot-pixel extraction).
 //   lpm_study compare REF.json BAKE.vdb [SIDE_BY_SIDE.png]
 //     One JSON line: the bake's band-0 and band-1..2 errors at the reference voxels (the
-//     exact sun terms added back; RMS relative to the reference's band-0 RMS), and `lpmbake render`'s image (black background, 4x4 rays
-//     a pixel) against
-//     the reference image, relative L1 per pixel and over 4x4 blocks, with the reference's
-//     own noise beside each figure; optionally the images: reference | bake | |difference| x 4.
+//     exact sun terms added back; RMS relative to the reference's band-0 RMS), and `lpmbake render`'s image (black
+//     background, 4x4 rays a pixel) against the reference image, relative L1 per pixel and over 4x4 blocks, with the
+//     reference's own noise beside each figure; optionally the images: reference | bake | |difference| x 4.
 #include <OpenImageIO/imageio.h>
 #include <nlohmann/json.hpp>
 
@@ -27,8 +26,8 @@
 #include <fstream>
 #include <string>
 
-#include "core/sun_term.h"
 #include "core/lpm_solver.h"
+#include "core/sun_term.h"
 #include "tests/core/lpm_vs_mc.h"
 #include "vdb_io/bake_render.h"
 #include "vdb_io/bake_schema.h"
@@ -300,8 +299,9 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "lpm_study: %s\n", e.what());
         return 1;
     }
-    std::fprintf(stderr, "usage: lpm_study reference IN.vdb --bake FRAMING.vdb [...] -o REF.json\n"
-                         "       lpm_study compare REF.json BAKE.vdb [SIDE_BY_SIDE.png]\n"
-                         "       lpm_study sky OUT.exr\n");
+    std::fprintf(stderr,
+                 "usage: lpm_study reference IN.vdb --bake FRAMING.vdb [...] -o REF.json\n"
+                 "       lpm_study compare REF.json BAKE.vdb [SIDE_BY_SIDE.png]\n"
+                 "       lpm_study sky OUT.exr\n");
     return 2;
 }

@@ -50,10 +50,10 @@ TEST(Quality, EachPresetReachesItsErrorOnARealSmoke) {
     double lastError = 1e9;
     for (const Expect& e : {Expect{"preview", 0.075, 2}, Expect{"default", 0.025, 4}, Expect{"production", 0.015, 6}}) {
         const std::string out = dir + "/" + e.preset + ".vdb", stats = dir + "/" + e.preset + ".json";
-        const auto r = runLpmbake({dataPath("vdb/densityAndHeat.vdb"), "--env", dataPath("env/rooftop_small.hdr"), "--g",
-                                   "0.6", "--density-scale", "2", "--quality", e.preset, "--verify", "64", "--stats",
-                                   stats, "-q", "-o", out},
-                                  dir);
+        const auto r = runLpmbake(
+            {dataPath("vdb/densityAndHeat.vdb"), "--env", dataPath("env/rooftop_small.hdr"), "--g", "0.6",
+             "--density-scale", "2", "--quality", e.preset, "--verify", "64", "--stats", stats, "-q", "-o", out},
+            dir);
         ASSERT_EQ(r.code, 0) << r.err;
         const BakeFile b = readBakeFile(out);
         EXPECT_EQ(metaString(*b.meta, "lpm:quality"), e.preset);
