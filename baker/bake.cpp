@@ -265,7 +265,11 @@ LpmResult solveStage(const BakeOptions& o, const VolumeInput& vol, const Lights&
 void verifyStage(const BakeOptions& o, const VolumeInput& vol, const Lights& lights, const LpmResult& res,
                  BakeSummary& sum, const Log& log) {
     const VerifySettings vs = verifySettings(o);
-    if (vs.probes <= 0 || vol.empty) return;
+    if (vs.probes <= 0) return;
+    if (vol.empty) {
+        log.note("verify: the volume is empty: nothing to check");
+        return;
+    }
     sum.verify = verifyBake(vol.medium, lights, res.sh, res.coeffs, vs);
     sum.verified = true;
     const VerifyReport& v = sum.verify;

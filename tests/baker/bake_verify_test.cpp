@@ -82,6 +82,16 @@ TEST(BakeVerify, SequenceCountsTheMarkedFrameAndReBakesIt) {
     EXPECT_NE(nlohmann::json::parse(again.out)["status"], "skipped");
 }
 
+TEST(BakeVerify, EmptyVolumeHasNothingToCheck) {
+    const std::string dir = lpmtest::scratchDir();
+    const auto r = runLpmbake({dataPath("vdb/smoke_seq.0001.vdb"), "--env", dataPath("env/rooftop_small.hdr"),
+                               "--max-error", "0.02", "-o", dir + "/empty.vdb"},
+                              dir);
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find("verify: the volume is empty: nothing to check"), std::string::npos) << r.err;
+    EXPECT_FALSE(verifyFailedMark(dir + "/empty.vdb"));
+}
+
 TEST(BakeVerify, BadValuesAreUsageErrors) {
     const std::string dir = lpmtest::scratchDir(), in = dataPath("vdb/densityAndHeat.vdb");
     for (const auto& [flag, value] : std::vector<std::pair<std::string, std::string>>{
