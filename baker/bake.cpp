@@ -106,8 +106,6 @@ EnvReadOptions envReadOptions(const BakeOptions& o) {
 
 Sun toSun(const SunOption& s) { return Sun{normalize(s.toSun), s.irradiance, s.angleDeg}; }
 
-/// What the command needs, then every settings struct's own range rules (the library is
-/// their one home), with the failing field named by its flag.
 /// --verify's settings; --max-error alone implies 64 probes.
 VerifySettings verifySettings(const BakeOptions& o) {
     VerifySettings v;
@@ -117,6 +115,8 @@ VerifySettings verifySettings(const BakeOptions& o) {
     return v;
 }
 
+/// What the command needs, then every settings struct's own range rules (the library is
+/// their one home), with the failing field named by its flag.
 void checkOptions(const BakeOptions& o) {
     if (o.input.empty()) throw UsageError("no input VDB given");
     if (o.output.empty()) throw UsageError("no output given (-o OUT.vdb)");
