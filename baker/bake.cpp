@@ -285,7 +285,9 @@ void verifyStage(const BakeOptions& o, const VolumeInput& vol, const Lights& lig
     const auto pct = [&g3](double x) { return g3(100.0 * x) + "%"; };
     log.note("verify: estimated relative error " + pct(v.error) + " (" + fmt(100.0 * v.confidence) + "% interval " +
              pct(v.low) + " to " + pct(v.high) + "; " + std::to_string(v.probes) + " probes of " +
-             std::to_string(v.pathsPerProbe) + " paths, their noise " + pct(v.mcNoise) + ", " + g3(v.seconds) + " s)");
+             std::to_string(v.pathsPerProbe) + " paths, their noise " + pct(v.mcNoise) + ", " + g3(v.seconds) + " s)" +
+             (o.solveScale != 1.0 ? "; on the --solve-scale grid: the resampling to the input's voxels is not checked"
+                                  : ""));
     if (o.maxError >= 0 && v.low > o.maxError) {
         sum.verifyFailed = true;
         log.warn("verify: the error is above --max-error " + pct(o.maxError) + " with " + fmt(100.0 * v.confidence) +
