@@ -66,10 +66,7 @@ sys.path.insert(0, os.path.normpath(os.path.join(HERE, "..", "blender")))
 import lpm_import                  # noqa: E402  (scripts/blender/lpm_import.py, unchanged)
 
 
-class Fail(Exception):
-    def __init__(self, code, message):
-        super().__init__(message)
-        self.code = code
+Fail = lpm_import.LpmError  # an error with its exit code (1 usage, 2 input, ...), as the import script's
 
 
 def log(msg):
@@ -728,12 +725,9 @@ if __name__ == "__main__":
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     try:
         rc = main(argv)
-    except Fail as e:
+    except Fail as e:  # also lpm_import's own errors, with their exit codes
         sys.stderr.write("%s: error: %s\n" % (PROG, str(e).replace("\n", " ")))
         rc = e.code
-    except lpm_import.LpmError as e:
-        sys.stderr.write("%s: error: %s\n" % (PROG, str(e).replace("\n", " ")))
-        rc = 2
     except Exception as e:          # noqa: BLE001  one line, exit 2
         import traceback
         traceback.print_exc()
