@@ -98,17 +98,7 @@ class Parser(argparse.ArgumentParser):
         raise Fail(1, message)
 
 
-def glue(argv, valued):
-    """Values such as -30,-50,-300 look like options to argparse: glue them to their option."""
-    out, i = [], 0
-    while i < len(argv):
-        if argv[i] in valued and i + 1 < len(argv):
-            out.append(argv[i] + "=" + argv[i + 1])
-            i += 2
-        else:
-            out.append(argv[i])
-            i += 1
-    return out
+glue = lpm_import.glue_values  # "-30,-50,-300" values glued to their option for argparse
 
 
 # ---------------------------------------------------------------------------------------

@@ -747,6 +747,20 @@ def _size(text):
     return w, h
 
 
+def glue_values(argv, valued):
+    """Values such as -30,-50,-300 look like options to argparse: glue them to their option
+    (for the options in `valued`), as --camera-eye=-30,-50,-300."""
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in valued and i + 1 < len(argv):
+            out.append(argv[i] + "=" + argv[i + 1])
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
 def parse_args(argv):
     p = _Parser(prog=PROG, description="Import an lpmbake bake into Blender (docs/renderers.md).")
     p.add_argument("bake")
@@ -770,17 +784,8 @@ def parse_args(argv):
                         "constant-free: the renderer grids extinction and source (bake with --renderer-grids)")
     p.add_argument("--no-half-voxel-shift", action="store_true")
     p.add_argument("--save-blend")
-    # Values such as -30,-50,-300 look like options to argparse: glue them to their option.
     valued = {"--camera-eye", "--camera-target", "--camera-up", "--fov-y", "--step-rate", "--pixel-filter"}
-    glued, i = [], 0
-    while i < len(argv):
-        if argv[i] in valued and i + 1 < len(argv):
-            glued.append(argv[i] + "=" + argv[i + 1])
-            i += 2
-        else:
-            glued.append(argv[i])
-            i += 1
-    a = p.parse_args(glued)
+    a = p.parse_args(glue_values(argv, valued))
     if a.render and (a.camera_eye is None or a.camera_target is None):
         raise LpmError(1, "--render needs --camera-eye and --camera-target")
     if not (a.step_rate > 0):
