@@ -82,8 +82,11 @@ std::vector<float> restrictSource(const Medium& f, const Medium& c, const std::v
     return out;
 }
 
-void injectCoarse(const Medium& f, const Medium& c, const std::vector<float>& coarseSource, int bins, int moments,
-                  std::vector<float>& out) {
+namespace {
+
+/// out's means = (accumulate ? out's means : 0) + scale * each fine voxel's coarse parent value.
+void applyCoarse(const Medium& f, const Medium& c, const std::vector<float>& coarseSource, int bins, int moments,
+                 bool accumulate, float scale, std::vector<float>& out) {
     parallelForChunks(f.voxelCount(), 4096, [&](size_t vb, size_t ve) {
         for (size_t v = vb; v < ve; ++v) {
             int x, y, z;
@@ -91,11 +94,25 @@ void injectCoarse(const Medium& f, const Medium& c, const std::vector<float>& co
             const bool inside = x >= 0 && x < f.nx && y < f.ny && z < f.nz;
             const size_t cv = inside ? c.index(x / 2, y / 2, z / 2) : Medium::npos;
             for (int d = 0; d < bins; ++d)
-                for (int ch = 0; ch < 3; ++ch)
-                    out[(v * bins + d) * size_t(moments) * 3 + ch] =
-                        cv == Medium::npos ? 0.0f : coarseSource[(cv * bins + d) * 3 + ch];
+                for (int ch = 0; ch < 3; ++ch) {
+                    float& o = out[(v * bins + d) * size_t(moments) * 3 + ch];
+                    const float p = cv == Medium::npos ? 0.0f : coarseSource[(cv * bins + d) * 3 + ch];
+                    o = accumulate ? o + scale * p : p;
+                }
         }
     });
+}
+
+}  // namespace
+
+void injectCoarse(const Medium& f, const Medium& c, const std::vector<float>& coarseSource, int bins, int moments,
+                  std::vector<float>& out) {
+    applyCoarse(f, c, coarseSource, bins, moments, false, 1.0f, out);
+}
+
+void addCoarse(const Medium& f, const Medium& c, const std::vector<float>& coarseSource, int bins, int moments,
+               float scale, std::vector<float>& out) {
+    applyCoarse(f, c, coarseSource, bins, moments, true, scale, out);
 }
 
 }  // namespace lpm

@@ -34,4 +34,10 @@ std::vector<float> restrictSource(const Medium& fine, const Medium& coarse, cons
 void injectCoarse(const Medium& fine, const Medium& coarse, const std::vector<float>& coarseSource, int bins,
                   int moments, std::vector<float>& out);
 
+/// out's means += scale * each fine voxel's coarse parent value (as injectCoarse, added;
+/// slopes untouched): the two-grid cycle adds and removes its coarse tail this way instead
+/// of holding it in a third fine-grid buffer.
+void addCoarse(const Medium& fine, const Medium& coarse, const std::vector<float>& coarseSource, int bins,
+               int moments, float scale, std::vector<float>& out);
+
 }  // namespace lpm

@@ -43,11 +43,14 @@ void LpmSolve::continueOnCoarse(int firstPass) {
     const Medium mc = coarsen(m_);
     LpmSettings cs = coarseSettings(s_, plan_, cache_);
     const SolvePlan coarsePlan = planSolve(summarizeScene(mc, Lights{}, nullptr, true), cs, maxThreads());
-    // Three source-sized buffers: r (also holds E during the fine pass), the tail (the
-    // source iteration's `unshot`, no longer needed) and next.
-    std::vector<float> r = next_;
-    std::vector<float>& tail = unshot_;
-    std::fill(tail.begin(), tail.end(), 0.0f);  // slopes of the tail stay 0
+    // Two fine source-sized buffers: r (also holds E during the fine pass) takes next's
+    // storage and next the source iteration's `unshot`, no longer needed. The tail (the
+    // coarse sources beyond r) stays on the coarse grid: it is added to r before the fine
+    // pass and taken from next after it, each fine voxel its coarse parent's value (means
+    // only; the tail has no slopes).
+    std::vector<float> r = std::move(next_);
+    next_ = std::move(unshot_);
+    unshot_ = std::vector<float>();
     int cycles = 0, coarsePasses = 0, p = firstPass;
     double rPower = res_.passes.back().scattered;
     bool coarseConverged = true;
@@ -67,17 +70,17 @@ void LpmSolve::continueOnCoarse(int firstPass) {
         res_.segments += cr.segments;
         if (cycles == 0)
             for (const std::string& d : cr.decisions) res_.decisions.push_back("coarse grid: " + d);
-        // tail = coarse sources beyond r, at each fine voxel its coarse parent's value.
+        // tail = coarse sources beyond r.
         std::vector<float> tailCoarse = cr.sourceSum;
         for (size_t i = 0; i < tailCoarse.size(); ++i) tailCoarse[i] -= uc[i];
-        injectCoarse(m_, mc, tailCoarse, nb_, M_, tail);
-        for (size_t i = 0; i < r.size(); ++i) r[i] += tail[i];  // r now holds E
+        addCoarse(m_, mc, tailCoarse, nb_, M_, 1.0f, r);  // r now holds E
         const auto tf = Clock::now();
         std::fill(next_.begin(), next_.end(), 0.0f);
         Tally t;
         runner_->run(sourceJobs(r), r_, t, true, next_);
         recordPass(p++, t, tf);
-        for (size_t i = 0; i < r.size(); ++i) r[i] = next_[i] - tail[i];
+        r = next_;
+        addCoarse(m_, mc, tailCoarse, nb_, M_, -1.0f, r);  // r' = K E - tail
         rPower = sourcePower(r);
         res_.passes.back().scattered = std::fabs(rPower);
         if (std::fabs(rPower) <= s_.tolerance * res_.injected) {

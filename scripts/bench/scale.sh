@@ -2,21 +2,24 @@
 # Time and memory against the active voxels (docs/performance.md): default bakes of
 # procedural volumes generated here (no large files in the repo), each a separate process
 # so peak RSS is its own.
-#   scripts/bench/scale.sh [--quick] [--large] [--threads N] [--original PATH-TO-AN-OLDER-lpmbake]
-# --large adds the 50M-active-voxel cloud in a 1024^3 box (about 10 minutes and 9 GB here).
+#   scripts/bench/scale.sh [--quick] [--large] [--mantaflow] [--threads N] [--original PATH-TO-AN-OLDER-lpmbake]
+# --large adds the 8M cloud and the 50M-active-voxel cloud in a 1024^3 box (about 10
+# minutes and 9 GB here). --mantaflow adds the ~1M-active-voxel Mantaflow smoke (Blender,
+# headless, resolution 224, frame 60: about 12 minutes to simulate once, then kept).
 # --only NAME runs that scene alone.
 # Prints a markdown table; volumes and bakes go to out/bench/scale/.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-quick=0; large=0; threads=0; original=""; only=""
+quick=0; large=0; mantaflow=0; threads=0; original=""; only=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --quick) quick=1 ;;
     --large) large=1 ;;
+    --mantaflow) mantaflow=1 ;;
     --only) only="$2"; shift ;;
     --threads) threads="$2"; shift ;;
     --original) original="$2"; shift ;;
-    *) echo "usage: scale.sh [--quick] [--large] [--only NAME] [--threads N] [--original LPMBAKE]" >&2; exit 2 ;;
+    *) echo "usage: scale.sh [--quick] [--large] [--mantaflow] [--only NAME] [--threads N] [--original LPMBAKE]" >&2; exit 2 ;;
   esac
   shift
 done
@@ -34,7 +37,11 @@ scenes=(
 if [ "$quick" = 0 ]; then
   scenes+=("cloud-4M|cloud --res 256|--albedo 0.9 --density-scale 0.05")
 fi
+if [ "$mantaflow" = 1 ]; then
+  scenes+=("smoke-1M-mantaflow|mantaflow --res 224 --end 60|--albedo 0.9 --density-scale 25 --up-axis z")
+fi
 if [ "$large" = 1 ]; then
+  scenes+=("cloud-8M|cloud --res 322|--albedo 0.9 --density-scale 0.04")
   scenes+=("cloud-50M-in-1024^3|cloud --res 585 --box 1024|--albedo 0.9 --density-scale 0.022")
 fi
 
@@ -45,6 +52,12 @@ for line in "${scenes[@]}"; do
   [ -n "$only" ] && [ "$name" != "$only" ] && continue
   vdb="$dir/$name.vdb"
   kind=${gen%% *}; opts=${gen#* }
+  if [ ! -f "$vdb" ] && [ "$kind" = mantaflow ]; then
+    # shellcheck disable=SC2086
+    bash scripts/volumes/make_blender_smoke.sh "$dir/$name.frames" $opts >&2
+    last=$(ls "$dir/$name.frames"/smoke.*.vdb | sort | tail -1)
+    mv "$last" "$vdb" && rm -rf "$dir/$name.frames"
+  fi
   # shellcheck disable=SC2086
   [ -f "$vdb" ] || $make_volume "$kind" "$vdb" $opts >/dev/null
   for bin in build/baker/lpmbake $original; do
