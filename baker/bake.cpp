@@ -59,6 +59,7 @@ std::string flagOf(const std::string& field) {
                                                                 {"shOrder", "--sh-order"},
                                                                 {"tolerance", "--tolerance"},
                                                                 {"maxOrders", "--max-orders"},
+                                                                {"krylovRestart", "--krylov-restart"},
                                                                 {"subdivide", "--subdivide"},
                                                                 {"multires", "--multires"},
                                                                 {"multiresAfter", "--multires-after"},

@@ -40,7 +40,11 @@ double weightedDot(const std::vector<double>& w, const std::vector<float>& a, co
     std::vector<double> part((len + kChunk - 1) / kChunk, 0.0);
     parallelForChunks(len, kChunk, [&](size_t b0, size_t e0) {
         double acc = 0;
-        for (size_t i = b0; i < e0; ++i) acc += w[i] * double(a[i]) * double(b[i]);
+        const size_t period = w.size();
+        for (size_t i = b0, j = b0 % period; i < e0; ++i) {
+            acc += w[j] * double(a[i]) * double(b[i]);
+            if (++j == period) j = 0;
+        }
         part[b0 / kChunk] = acc;
     });
     double sum = 0;

@@ -1,7 +1,8 @@
 // Restarted GMRES (Saad and Schultz 1986, "GMRES: a generalized minimal residual algorithm
 // for solving nonsymmetric linear systems", SIAM J. Sci. Stat. Comput. 7(3)), with
 // modified Gram-Schmidt and Givens rotations, in a weighted inner product
-// <a, b> = sum_i w_i a_i b_i. The solver uses it on the scattering-order iteration:
+// <a, b> = sum_i w_(i mod P) a_i b_i: the P weights repeat (one voxel's bins and channels),
+// so they cost no memory of the vectors' size. The solver uses it on the scattering-order iteration:
 // (I - K) X = B with K one propagation pass (docs/lpm_solver.md). Every reduction is
 // chunked in a fixed order, so results do not depend on the thread count.
 #pragma once
@@ -27,7 +28,7 @@ using LinearOperator = std::function<void(const std::vector<float>& x, std::vect
 GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, const std::vector<double>& weights,
                        double target, int restart, const std::function<bool()>& mayApply, std::vector<float>& X);
 
-/// <a, b>_w summed in fixed chunks (thread-count independent).
+/// <a, b>_w summed in fixed chunks (thread-count independent); w repeats with period w.size().
 double weightedDot(const std::vector<double>& w, const std::vector<float>& a, const std::vector<float>& b);
 
 }  // namespace lpm

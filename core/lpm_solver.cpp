@@ -255,11 +255,15 @@ bool LpmSolve::iterate() {
 // propagation pass (source -> next unshot), in the inner product <a, b> = sum_d w_d a.b.
 void LpmSolve::finishWithGmres() {
     const size_t len = next_.size();
-    std::vector<double> binW(len);
-    // Slopes enter with the weight of their L2 norm over the voxel (Int xi^2 = 1/12).
-    for (size_t i = 0; i < len; ++i)
+    // One voxel's weights (they repeat): slopes enter with the weight of their L2 norm over
+    // the voxel (Int xi^2 = 1/12).
+    std::vector<double> binW(perVoxel_);
+    for (size_t i = 0; i < perVoxel_; ++i)
         binW[i] = ff_->binWeight(int((i / (3 * M_)) % nb_)) * ((i / 3) % M_ == 0 ? 1.0 : 1.0 / 12);
-    std::vector<float> kv(len);
+    // B takes next's storage, K v the previous pass's source (no longer needed).
+    const std::vector<float> B = std::move(next_);
+    std::vector<float> kv = std::move(unshot_);
+    kv.resize(len);
     const LinearOperator A = [&](const std::vector<float>& v, std::vector<float>& outv) {  // A v = v - K v
         const auto tp = Clock::now();
         std::fill(kv.begin(), kv.end(), 0.0f);
@@ -270,7 +274,6 @@ void LpmSolve::finishWithGmres() {
             for (size_t i = b0; i < e0; ++i) outv[i] = v[i] - kv[i];
         });
     };
-    const std::vector<float> B = next_;
     // Krylov vectors are the big memory cost: cap their number by the memory budget.
     const size_t vecBytes = len * sizeof(float);
     const int restart = int(std::clamp<size_t>((size_t(2) << 30) / std::max<size_t>(1, vecBytes), 4,
@@ -284,6 +287,7 @@ void LpmSolve::finishWithGmres() {
         for (int c = 0; c < 3; ++c) X[i + c] = std::max(0.0f, X[i + c]);
     // Final physical pass: deposit S from the whole remaining sum.
     const auto tp = Clock::now();
+    next_ = std::move(kv);
     std::fill(next_.begin(), next_.end(), 0.0f);
     addToSourceSum(X);
     Tally t;

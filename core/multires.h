@@ -37,7 +37,7 @@ void injectCoarse(const Medium& fine, const Medium& coarse, const std::vector<fl
 /// out's means += scale * each fine voxel's coarse parent value (as injectCoarse, added;
 /// slopes untouched): the two-grid cycle adds and removes its coarse tail this way instead
 /// of holding it in a third fine-grid buffer.
-void addCoarse(const Medium& fine, const Medium& coarse, const std::vector<float>& coarseSource, int bins,
-               int moments, float scale, std::vector<float>& out);
+void addCoarse(const Medium& fine, const Medium& coarse, const std::vector<float>& coarseSource, int bins, int moments,
+               float scale, std::vector<float>& out);
 
 }  // namespace lpm
