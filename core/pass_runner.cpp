@@ -104,6 +104,13 @@ PassRunner::PassRunner(const Medium& m, FoldShape shape, const std::vector<std::
                        std::vector<float>& sh)
     : m_(m), shape_(shape), slopeVoxel_(slopeVoxel), sh_(sh) {}
 
+void PassRunner::releaseBuffers() const { buffers_ = std::vector<std::vector<float>>(); }
+
+std::vector<float>& PassRunner::zeroedBuffer(size_t i, size_t len) const {
+    buffers_[i].assign(len, 0.0f);
+    return buffers_[i];
+}
+
 void PassRunner::run(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const {
     if (isotropic(jobs)) runIsotropic(jobs, r, total, depositSh, out);
     else runGeneral(jobs, r, total, depositSh, out);
@@ -129,19 +136,19 @@ void PassRunner::runGeneral(const std::vector<Job>& jobs, int r, Tally& total, b
     const size_t batchMem = size_t(512) << 20;
     const size_t maxBatch = std::max<size_t>(1, batchMem / std::max<size_t>(1, N * 3 * M * sizeof(float)));
     const size_t batch = std::min(jobs.size(), std::min<size_t>(maxBatch, 16));
-    std::vector<std::vector<float>> phi(batch);
+    if (buffers_.size() < batch) buffers_.resize(batch);
     for (size_t b0 = 0; b0 < jobs.size(); b0 += batch) {
         const size_t nbatch = std::min(batch, jobs.size() - b0);
         std::vector<Tally> tallies(nbatch);
         parallelForChunks(nbatch, 1, [&](size_t jb, size_t je) {
             for (size_t j = jb; j < je; ++j) {
-                phi[j].assign(N * 3 * M, 0.0f);
-                if (M == 4) sweepReference<true>(m_, jobs[b0 + j], r, phi[j].data(), tallies[j]);
-                else sweepStep(m_, jobs[b0 + j], r, phi[j].data(), tallies[j]);
+                float* phi = zeroedBuffer(j, N * 3 * M).data();
+                if (M == 4) sweepReference<true>(m_, jobs[b0 + j], r, phi, tallies[j]);
+                else sweepStep(m_, jobs[b0 + j], r, phi, tallies[j]);
             }
         });
         for (size_t j = 0; j < nbatch; ++j) total.add(tallies[j]);
-        foldDeposits(shape_, depositSh, &jobs[b0], nbatch, phi, slopeVoxel_, sh_, out);
+        foldDeposits(shape_, depositSh, &jobs[b0], nbatch, buffers_, slopeVoxel_, sh_, out);
     }
 }
 
@@ -159,13 +166,12 @@ void PassRunner::runIsotropic(const std::vector<Job>& jobs, int r, Tally& total,
     const float perWeight = jobs.empty() ? 0.0f : float(jobs[0].binCoef[0] / jobs[0].weight);
     const std::vector<std::vector<const Job*>> batches = sweepBatches(jobs, kBatchSplit);
     const size_t G = batches.size();
-    std::vector<std::vector<float>> acc(G);
+    if (buffers_.size() < G) buffers_.resize(G);
+    const std::vector<std::vector<float>>& acc = buffers_;
     std::vector<Tally> tallies(G);
     parallelForChunks(G, 1, [&](size_t gb, size_t ge) {
-        for (size_t g = gb; g < ge; ++g) {
-            acc[g].assign(N * 3, 0.0f);
-            sweepStepBatch(m_, batches[g], r, acc[g].data(), tallies[g], perWeight);
-        }
+        for (size_t g = gb; g < ge; ++g)
+            sweepStepBatch(m_, batches[g], r, zeroedBuffer(g, N * 3).data(), tallies[g], perWeight);
     });
     for (const Tally& t : tallies) total.add(t);
     parallelForChunks(N * 3, 1 << 14, [&](size_t b, size_t e) {

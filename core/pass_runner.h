@@ -33,7 +33,15 @@ public:
     /// Whether `jobs` take the isotropic fold.
     bool isotropic(const std::vector<Job>& jobs) const;
 
+    /// Frees the deposit buffers kept from pass to pass (before a phase that needs the memory).
+    void releaseBuffers() const;
+
 private:
+    /// Deposit buffer i (a batch's accumulator or a direction's deposit), `len` zeros. The
+    /// buffers are kept from pass to pass: allocated and freed every pass, their pages
+    /// were faulted in again each time (a fifth of a bake's time, docs/performance.md).
+    std::vector<float>& zeroedBuffer(size_t i, size_t len) const;
+
     void runGeneral(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const;
     void runIsotropic(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const;
 
@@ -41,6 +49,7 @@ private:
     FoldShape shape_;
     const std::vector<std::uint8_t>& slopeVoxel_;
     std::vector<float>& sh_;
+    mutable std::vector<std::vector<float>> buffers_;
 };
 
 /// The jobs grouped into sweep batches (sweepStepBatch): per sweep axis and source (in order

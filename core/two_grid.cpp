@@ -55,6 +55,7 @@ void LpmSolve::continueOnCoarse(int firstPass) {
     double rPower = res_.passes.back().scattered;
     bool coarseConverged = true;
     for (; cycles < kCycles && p < s_.maxOrders; ++cycles) {
+        runner_->releaseBuffers();  // the coarse solve needs the memory more than the next fine pass its pages
         const std::vector<float> uc = restrictSource(m_, mc, r, nb_, M_);
         cs.maxOrders = std::max(1, s_.maxOrders - p);
         cs.tolerance = std::fabs(rPower) > 0 ? s_.tolerance * res_.injected / std::fabs(rPower) : s_.tolerance;

@@ -18,6 +18,7 @@
 #include <cstring>
 #include <sstream>
 
+#include "core/malloc_policy.h"
 #include "core/parallel.h"
 #include "tests/core/lpm_vs_mc.h"
 #include "vdb_io/env_reader.h"
@@ -62,6 +63,7 @@ LpmSettings settingsNamed(const std::string& name) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    keepFreedBuffersForReuse();  // as lpmbake does
     if (argc < 2) {
         std::fprintf(stderr,
                      "usage: lpm_bench_volume IN.vdb [--env SKY] [--sun X,Y,Z] [--albedo A] [--g G] "
