@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Issue 9's target 3: the 1 -> 2 thread speed-up of one bake, measured in one run with
+# the 1- and 2-thread bakes interleaved (this machine is shared: the minimum over the
+# repetitions is the least disturbed run; the median is given beside it). Checks that
+# every bake has the same content digest.
+#   scripts/bench/thread_scaling.sh [--reps N] VOLUME.vdb [bake args...]
+# Prints a markdown table of each run and the speed-ups of solve and total.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+reps=5
+if [ "${1:-}" = --reps ]; then reps=$2; shift 2; fi
+vdb=${1:?usage: thread_scaling.sh [--reps N] VOLUME.vdb [bake args...]}; shift
+[ -x build/baker/lpmbake ] || bash scripts/build.sh >/dev/null
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+for ((i = 1; i <= reps; ++i)); do
+  for t in 1 2; do
+    build/baker/lpmbake "$vdb" "$@" --threads "$t" --stats "$out/$t.$i.json" -o "$out/$t.$i.vdb" 2>/dev/null
+    build/baker/lpmbake info --digest "$out/$t.$i.vdb" > "$out/$t.$i.digest"
+    rm -f "$out/$t.$i.vdb"
+  done
+done
+python3 - "$out" "$reps" <<'PY'
+import glob, json, os, statistics, sys
+out, reps = sys.argv[1], int(sys.argv[2])
+runs = {1: [], 2: []}
+digests = set()
+print("| run | threads | solve s | total s | write s | peak RSS MiB | digest |")
+print("|---|---|---|---|---|---|---|")
+for i in range(1, reps + 1):
+    for t in (1, 2):
+        d = json.load(open(os.path.join(out, f"{t}.{i}.json")))
+        dig = open(os.path.join(out, f"{t}.{i}.digest")).read().strip()
+        digests.add(dig)
+        ts = d["timings_s"]
+        runs[t].append((ts["solve"], ts["total"]))
+        print(f"| {i} | {t} | {ts['solve']:.2f} | {ts['total']:.2f} | {ts['write']:.2f} | {d['peak_rss_mib']:.0f} | {dig} |")
+for k, name in ((0, "solve"), (1, "total")):
+    a = [r[k] for r in runs[1]]
+    b = [r[k] for r in runs[2]]
+    print(f"\n{name}: 1 thread min {min(a):.2f} s, median {statistics.median(a):.2f} s; "
+          f"2 threads min {min(b):.2f} s, median {statistics.median(b):.2f} s; "
+          f"speed-up of the minima {min(a) / min(b):.2f}x, of the medians {statistics.median(a) / statistics.median(b):.2f}x")
+print(f"\ncontent digests: {'all equal' if len(digests) == 1 else 'DIFFER: ' + ', '.join(sorted(digests))}")
+sys.exit(0 if len(digests) == 1 else 1)
+PY
