@@ -354,7 +354,7 @@ void addSolverOptions(CLI::App& app, Args& a) {
         ->group(gS);
     app.add_flag("--no-krylov", a.noKrylov, "never switch to GMRES acceleration (plain source iteration)")->group(gS);
     app.add_option("--krylov-restart", a.b.solver.krylovRestart,
-                   "GMRES restarts after this many Krylov vectors (each the size of the unshot source): fewer hold "
+                   "GMRES restarts after this many Krylov vectors (4 at least; each the size of the unshot source): fewer hold "
                    "less memory and may need more passes")
         ->default_val(a.b.solver.krylovRestart)
         ->group(gS);

@@ -93,6 +93,9 @@ TEST(Cli, UsageErrorsExit1) {
     expectOneLineError(
         runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--directions-per-face", "65"}, dir), 1,
         "usage", {"--directions-per-face", "got 65"});
+    expectOneLineError(
+        runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--krylov-restart", "0"}, dir), 1,
+        "usage", {"--krylov-restart", "got 0"});
     expectOneLineError(runLpmbake({"render", dataPath("vdb/torus01.vdb"), "-o", dir + "/x.jpg"}, dir), 1, "usage",
                        {".exr", ".png"});
     expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", out, "--sun", "0,1,0", "--up-axis", "x"}, dir), 1,

@@ -131,3 +131,23 @@ TEST(Gmres, SameResultForAnyThreadCount) {
     }
     EXPECT_EQ(w1, w2);
 }
+
+// The weights repeat with their own length (one voxel's bins and channels): a period of 3
+// gives the inner product and the solution of the same weights written out in full.
+TEST(Gmres, WeightsRepeatWithTheirPeriod) {
+    const int n = 30;
+    const auto K = makeSystem(n, 0.9, 7);
+    const std::vector<float> b = randomRhs(n, 8);
+    const std::vector<double> period = {0.5, 1.5, 2.5};
+    std::vector<double> full(n);
+    for (int i = 0; i < n; ++i) full[i] = period[size_t(i) % period.size()];
+    EXPECT_EQ(weightedDot(period, b, b), weightedDot(full, b, b));
+    std::vector<float> xp, xf;
+    const GmresReport rp = solveGmres(
+        operatorOf(K), b, period, 1e-5, 40, [] { return true; }, xp);
+    const GmresReport rf = solveGmres(
+        operatorOf(K), b, full, 1e-5, 40, [] { return true; }, xf);
+    EXPECT_TRUE(rp.converged);
+    EXPECT_EQ(rp.matvecs, rf.matvecs);
+    EXPECT_EQ(xp, xf);
+}

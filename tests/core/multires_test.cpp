@@ -166,3 +166,29 @@ TEST(Multires, CoarseGridSwitchesToGmresEarly) {
                 coarsePasses(rp), rel);
     EXPECT_LT(rel, early.tolerance);  // measured 2.4e-4
 }
+
+// addCoarse adds (or, with scale -1, takes away) each fine voxel's coarse parent value to
+// the means, exactly as injectCoarse writes it, and leaves the slopes alone: the two-grid
+// cycle's E = r + tail and r' = K E - tail without a fine tail buffer.
+TEST(Multires, AddCoarseAddsTheInjectedValueToTheMeans) {
+    const Medium f = sparseBlock(6);
+    const Medium c = coarsen(f);
+    const int bins = 2, moments = 4;
+    std::vector<float> uc(c.voxelCount() * bins * 3), base(f.voxelCount() * bins * moments * 3);
+    Pcg32 rng(6, 2);
+    for (float& x : uc) x = float(rng.uniform());
+    for (float& x : base) x = float(rng.uniform());
+    std::vector<float> injected(base.size(), 0.0f);
+    injectCoarse(f, c, uc, bins, moments, injected);
+    for (float scale : {1.0f, -1.0f}) {
+        std::vector<float> out = base;
+        addCoarse(f, c, uc, bins, moments, scale, out);
+        size_t changed = 0;
+        for (size_t i = 0; i < out.size(); ++i) {
+            const bool mean = (i / 3) % moments == 0;
+            ASSERT_EQ(out[i], mean ? base[i] + scale * injected[i] : base[i]) << i;
+            changed += out[i] != base[i] ? 1 : 0;
+        }
+        EXPECT_GT(changed, out.size() / 8);
+    }
+}

@@ -81,3 +81,31 @@ TEST(PassRunner, BatchesPartitionJobsByAxisAndSource) {
     EXPECT_EQ(seen.size(), jobs.size());
     EXPECT_EQ(batches.size(), 12u) << "3 axes x 2 sources x 2 halves";
 }
+
+// The runner keeps its deposit buffers from pass to pass (they were faulted in again every
+// pass): a pass run again on the same runner, and again after releaseBuffers, gives the
+// same deposits, bit for bit, in both folds. A buffer not zeroed between passes fails it.
+TEST(PassRunner, KeptBuffersStartEveryPassFromZero) {
+    const Medium m = makeVolume(VolumeKind::Cloud, 12, 3.0);
+    LpmCache cache;
+    const CubeQuadrature quad(4);
+    const auto ff = cache.formFactors(4, 0, 0.0);
+    const std::vector<RGB> sky(quad.count(), RGB(1.0f, 0.8f, 0.5f));
+    const std::vector<std::uint8_t> noSlopes;
+    for (int coeffs : {1, 4}) {
+        const JobFactory factory(quad, *ff, m.localToWorld, m.voxelVolume(), coeffs, 0.0);
+        const std::vector<Job> jobs = factory.lightJobs(m, sky, true, {});
+        std::vector<float> sh(m.voxelCount() * coeffs * 3, 0.0f);
+        const PassRunner runner(m, FoldShape{1, 1, coeffs}, noSlopes, sh);
+        std::vector<std::vector<float>> outs;
+        for (int pass = 0; pass < 3; ++pass) {
+            if (pass == 2) runner.releaseBuffers();
+            outs.emplace_back(m.voxelCount() * 3, 0.0f);
+            Tally t;
+            runner.run(jobs, 2, t, false, outs.back());
+        }
+        EXPECT_GT(*std::max_element(outs[0].begin(), outs[0].end()), 0.0f);
+        EXPECT_EQ(outs[1], outs[0]) << coeffs << " coefficients, second pass";
+        EXPECT_EQ(outs[2], outs[0]) << coeffs << " coefficients, after releaseBuffers";
+    }
+}
