@@ -128,14 +128,17 @@ bool PassRunner::isotropic(const std::vector<Job>& jobs) const {
 }
 
 // Sweeps in parallel (one buffer per job), then folds the batch in job order, in parallel
-// over voxels. Thread-count independent by construction.
+// over voxels. Thread-count independent by construction (and batch-size independent: each
+// voxel's sums take the jobs in job order either way). Batches of 8: plume-1M at g = 0.6
+// peaked at 1663 MiB with 16, 1522 MiB with 8 or 4, in the same time within this
+// machine's noise (docs/performance.md).
 void PassRunner::runGeneral(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh,
                             std::vector<float>& out) const {
     const size_t N = m_.voxelCount();
     const int M = shape_.moments;
     const size_t batchMem = size_t(512) << 20;
     const size_t maxBatch = std::max<size_t>(1, batchMem / std::max<size_t>(1, N * 3 * M * sizeof(float)));
-    const size_t batch = std::min(jobs.size(), std::min<size_t>(maxBatch, 16));
+    const size_t batch = std::min(jobs.size(), std::min<size_t>(maxBatch, 8));
     if (buffers_.size() < batch) buffers_.resize(batch);
     for (size_t b0 = 0; b0 < jobs.size(); b0 += batch) {
         const size_t nbatch = std::min(batch, jobs.size() - b0);
