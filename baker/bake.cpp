@@ -347,6 +347,7 @@ BakeWriteOptions writeOptions(const BakeOptions& o) {
     wo.path = o.output;
     wo.inputs = {o.input, o.env};
     wo.half = o.half;
+    wo.zip = o.zip;
     wo.writeDensity = !o.noDensity;
     wo.densityName = "density";  // the name renderers look for; the source name is in lpm:input_grid
     wo.rendererGrids = o.rendererGrids;

@@ -76,6 +76,7 @@ struct BakeOptions {
     std::string quality = "default";  ///< --quality preset the solver knobs came from (baker/quality.h)
     int threads = 0;                  ///< 0 = all cores
     bool half = false;
+    bool zip = false;  ///< zip-compress the grids (--compression zip): up to 11% smaller, write 4-6x slower
     bool noDensity = false;
     bool rendererGrids = false;  ///< also write extinction and source (vdb_io/renderer_grids.h)
     std::uint64_t maxVoxels = 1ull << 30;

@@ -200,8 +200,11 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
     for (const auto& g : grids) rep.gridNames.push_back(g->getName());
     try {
         openvdb::io::File f(out.tempPath());
-        // zip rather than Blosc: Blosc version mismatches have broken reads elsewhere.
-        f.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
+        // Uncompressed by default: zip shrinks the noisy floats of lighting grids by only
+        // 1-11% and takes 80% of the write (docs/output_format.md). zip rather than Blosc
+        // when asked: Blosc version mismatches have broken reads elsewhere.
+        f.setCompression(o.zip ? openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK
+                               : openvdb::io::COMPRESS_ACTIVE_MASK);
         f.write(grids, meta);
         f.close();
         // Read the grid list back: catches short writes (disk full) before the rename.

@@ -66,6 +66,7 @@ struct BakeWriteOptions {
     std::string path;
     std::vector<std::string> inputs;  ///< files the output must never overwrite
     bool half = false;                ///< store floats as 16-bit halves
+    bool zip = false;                 ///< zip-compress the grids (else only inactive values are left out)
     bool writeDensity = true;
     std::string densityName = "density";
     /// Also write the constant-free grids extinction and source (renderer_grids.h) with

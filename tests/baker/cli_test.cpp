@@ -140,6 +140,30 @@ TEST(Cli, RendererGridsAreConstantFree) {
         EXPECT_TRUE(g->getName() != "extinction" && g->getName() != "source") << g->getName();
 }
 
+// --compression: none by default, zip on request: the content is the same (equal digests)
+// and zip's file is smaller (0.987 of the size on this torus, 0.94 on the 1M smoke; without
+// the zip both files are the same size).
+TEST(Cli, CompressionNoneByDefaultZipOnRequest) {
+    const std::string dir = lpmtest::scratchDir();
+    ASSERT_EQ(runLpmbake(torusArgs(dir + "/none.vdb"), dir).code, 0);
+    auto a = torusArgs(dir + "/zip.vdb");
+    a.insert(a.end(), {"--compression", "zip"});
+    ASSERT_EQ(runLpmbake(a, dir).code, 0);
+    std::string digest[2];
+    for (int k = 0; k < 2; ++k) {
+        const auto r = runLpmbake({"info", "--digest", dir + (k ? "/zip.vdb" : "/none.vdb")}, dir);
+        ASSERT_EQ(r.code, 0) << r.err;
+        digest[k] = r.out;
+    }
+    EXPECT_EQ(digest[0], digest[1]);
+    const double ratio = double(fs::file_size(dir + "/zip.vdb")) / double(fs::file_size(dir + "/none.vdb"));
+    EXPECT_LT(ratio, 1.0);
+    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", dir + "/x.vdb", "--sun", "0,1,0",
+                                   "--compression", "blosc"},
+                                  dir),
+                       1, "usage", {"--compression", "blosc"});
+}
+
 TEST(Cli, InputErrorsExit2) {
     const std::string dir = lpmtest::scratchDir();
     const std::string out = dir + "/o.vdb";
