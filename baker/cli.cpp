@@ -413,9 +413,10 @@ void addSequenceAndOutputOptions(CLI::App& app, Args& a) {
 
     auto* gO = "Output and run";
     app.add_flag("--half", a.b.half, "store 16-bit floats (warns when values exceed 65504)")->group(gO);
-    app.add_option("--compression", a.compression,
-                   "none or zip: zip makes the file up to 11% smaller and its write 4-6x slower (the lighting grids are "
-                   "noisy floats; docs/output_format.md)")
+    app.add_option(
+           "--compression", a.compression,
+           "none or zip: zip makes the file up to 11% smaller and its write 4-6x slower (the lighting grids are "
+           "noisy floats; docs/output_format.md)")
         ->default_val("none")
         ->check(CLI::IsMember({"none", "zip"}))
         ->group(gO);

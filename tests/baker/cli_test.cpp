@@ -158,10 +158,10 @@ TEST(Cli, CompressionNoneByDefaultZipOnRequest) {
     EXPECT_EQ(digest[0], digest[1]);
     const double ratio = double(fs::file_size(dir + "/zip.vdb")) / double(fs::file_size(dir + "/none.vdb"));
     EXPECT_LT(ratio, 1.0);
-    expectOneLineError(runLpmbake({dataPath("vdb/torus01.vdb"), "-o", dir + "/x.vdb", "--sun", "0,1,0",
-                                   "--compression", "blosc"},
-                                  dir),
-                       1, "usage", {"--compression", "blosc"});
+    expectOneLineError(
+        runLpmbake({dataPath("vdb/torus01.vdb"), "-o", dir + "/x.vdb", "--sun", "0,1,0", "--compression", "blosc"},
+                   dir),
+        1, "usage", {"--compression", "blosc"});
 }
 
 TEST(Cli, InputErrorsExit2) {
