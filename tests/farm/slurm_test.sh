@@ -57,7 +57,11 @@ rm -rf "$W"
 mkdir -p "$W/out" "$W/ref"
 OUT="$W/out/lit.####.vdb"
 out_of() { printf '%s/out/lit.%04d.vdb' "$W" "$1"; }
-BAKE=("$IN" --env "$ENV" -o "$OUT")    # the bake arguments every phase uses
+# The bake arguments every phase uses. zip: the cancel phase freezes frame 3 while its
+# temporary file exists and needs the rest of the write to outlast the moment between
+# Slurm's SIGCONT and SIGTERM; uncompressed, the write of these small frames is so short
+# that a resumed bake could finish it first (the content digests do not depend on it).
+BAKE=("$IN" --env "$ENV" -o "$OUT" --compression zip)
 # Bounded: Slurm ends a task after 3 minutes, and no --wait lasts longer than 4.
 submit() { timeout 240 "$SUBMIT" --sbatch-arg --time=3 --lpmbake "$LPMBAKE" "$@"; }
 
