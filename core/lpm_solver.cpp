@@ -17,6 +17,7 @@
 #include "core/delta_m.h"
 #include "core/env_binning.h"
 #include "core/gmres.h"
+#include "core/malloc_policy.h"
 #include "core/lpm_solve.h"
 #include "core/parallel.h"
 #include "core/subdivide.h"
@@ -106,7 +107,7 @@ LpmSolve::LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, 
     res_.directionCount = quad_.count();
     res_.binCount = nb_;
     res_.decisions = plan.lines();
-    res_.sh.assign(N_ * nc_ * 3, 0.0f);
+    assignZeroed(res_.sh, N_ * nc_ * 3);
     // Linear source: voxels thicker than linearSourceVoxelCap keep a constant source. In
     // them the fitted slope approaches its bound 6 U0 (all light deposited at one face), the
     // linear profile goes strongly negative and the iteration loses accuracy (white furnace
@@ -124,10 +125,10 @@ LpmSolve::LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, 
             res_.decisions.push_back(std::to_string(capped) + " voxels thicker than optical depth " +
                                      format("%g", s.linearSourceVoxelCap) + " keep a constant source");
     }
-    unshot_.assign(perVoxel_ * N_, 0.0f);
-    next_.assign(perVoxel_ * N_, 0.0f);
+    assignZeroed(unshot_, perVoxel_ * N_);
+    assignZeroed(next_, perVoxel_ * N_);
     runner_ = std::make_unique<PassRunner>(m, FoldShape{nb_, M_, nc_}, slopeVoxel_, res_.sh);
-    if (initialSource_) res_.sourceSum.assign(N_ * size_t(nb_) * 3, 0.0f);
+    if (initialSource_) assignZeroed(res_.sourceSum, N_ * size_t(nb_) * 3);
 }
 
 void LpmSolve::recordPass(int pass, const Tally& t, Clock::time_point start, bool physical) {

@@ -1,10 +1,20 @@
-// The process's allocator policy for bakes (glibc): the solver's per-pass buffers (sweep
-// planes and ray rows, batch accumulators, a few MiB to tens of MiB each, allocated and
-// freed by every pass and batch) would otherwise go back to the kernel when freed and be
-// faulted in again page by page at the next use. Measured on the 1M-voxel Mantaflow smoke
-// (docs/performance.md): 175k page faults per bake -> 67k, solve 4.1 -> 3.2 s on 2 threads,
-// peak RSS +25 MiB.
+// The process's allocator policy for bakes (glibc, Linux).
+//
+// 1. Freed buffers stay in the heap: the solver's per-pass buffers (sweep planes and ray
+//    rows, batch accumulators, a few MiB to tens of MiB each, allocated and freed by every
+//    pass and batch) would otherwise go back to the kernel when freed and be faulted in
+//    again page by page at the next use. Measured on the 1M-voxel Mantaflow smoke
+//    (docs/performance.md): 175k page faults per bake -> 67k, solve 4.1 -> 3.2 s on 2
+//    threads, peak RSS +25 MiB.
+// 2. Large buffers on transparent huge pages: a first touch of a 4 KiB page costs a trap
+//    (about 7 us on this VM, most of it the hypervisor); the solver's big buffers are
+//    advised MADV_HUGEPAGE before their first touch, so one fault maps 2 MiB
+//    (`assignZeroed`). The kernel's THP mode here is "madvise": without the advice none
+//    are used.
 #pragma once
+
+#include <cstddef>
+#include <vector>
 
 namespace lpm {
 
@@ -12,5 +22,23 @@ namespace lpm {
 /// heap trimmed only above 256 MiB free). Call once, before any thread starts; a no-op
 /// outside glibc.
 void keepFreedBuffersForReuse();
+
+/// Asks the kernel to back the whole 2 MiB pages inside [p, p + bytes) with transparent
+/// huge pages. Best effort: ignored below 4 MiB, where THP is off, or off Linux.
+void adviseHugePages(void* p, std::size_t bytes);
+
+/// v.assign(n, 0) for a large buffer: when v must grow, its new storage is advised onto
+/// huge pages before the zeros first touch it. Returns v.
+template <class T>
+std::vector<T>& assignZeroed(std::vector<T>& v, std::size_t n) {
+    if (v.capacity() < n) {
+        std::vector<T> fresh;
+        fresh.reserve(n);
+        adviseHugePages(fresh.data(), n * sizeof(T));
+        v.swap(fresh);
+    }
+    v.assign(n, T{});
+    return v;
+}
 
 }  // namespace lpm

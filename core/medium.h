@@ -12,6 +12,7 @@
 
 #include "core/envmap.h"
 #include "core/error.h"
+#include "core/malloc_policy.h"
 #include "core/math.h"
 
 namespace lpm {
@@ -131,9 +132,9 @@ inline void Medium::allocate(int nx_, int ny_, int nz_, const std::vector<std::u
             storedTiles = size_t(next);
         }
     }
-    sigmaT.assign(voxelCount(), 0.0f);
+    assignZeroed(sigmaT, voxelCount());
     emission.clear();
-    if (withEmission) emission.assign(voxelCount(), RGB(0.f));
+    if (withEmission) assignZeroed(emission, voxelCount());
 }
 
 inline void validateMaterial(const RGB& albedo, double g) {

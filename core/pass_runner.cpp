@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/malloc_policy.h"
 #include "core/parallel.h"
 
 namespace lpm {
@@ -107,8 +108,7 @@ PassRunner::PassRunner(const Medium& m, FoldShape shape, const std::vector<std::
 void PassRunner::releaseBuffers() const { buffers_ = std::vector<std::vector<float>>(); }
 
 std::vector<float>& PassRunner::zeroedBuffer(size_t i, size_t len) const {
-    buffers_[i].assign(len, 0.0f);
-    return buffers_[i];
+    return assignZeroed(buffers_[i], len);
 }
 
 void PassRunner::run(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const {

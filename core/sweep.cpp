@@ -27,6 +27,8 @@
 
 #include "core/sweep.h"
 
+#include "core/malloc_policy.h"
+
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(LPM_NO_CLONES)
 // One binary, the best of AVX-512 / AVX2+FMA / SSE2 chosen at load time (GCC ifunc). The
 // x86-64 levels, not "avx2" alone: that target has no FMA.
@@ -366,7 +368,7 @@ public:
             pr.base = total;
             total += size_t(pr.width) * K * K * kChunk;
         }
-        P_.assign(total, 0.0f);
+        assignZeroed(P_, total);
         spanLo_.assign(size_t(f_.nv), 0);
         spanHi_.assign(size_t(f_.nv), 0);
     }

@@ -1,0 +1,71 @@
+// core/malloc_policy: zeroed buffers, reuse of their storage, and the huge-page advice.
+#include "core/malloc_policy.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "core/math.h"
+
+namespace lpm {
+namespace {
+
+TEST(MallocPolicy, AssignZeroedZeroesGrowsAndReusesStorage) {
+    std::vector<float> v(1000, 7.0f);
+    assignZeroed(v, 500);
+    ASSERT_EQ(v.size(), 500u);
+    for (float x : v) ASSERT_EQ(x, 0.0f);
+    const float* kept = v.data();
+    v.assign(500, 3.0f);
+    assignZeroed(v, 800);  // within the old capacity: same storage
+    EXPECT_EQ(v.data(), kept);
+    for (float x : v) ASSERT_EQ(x, 0.0f);
+    assignZeroed(v, size_t(3) << 20);  // grows: fresh storage, all zero
+    ASSERT_EQ(v.size(), size_t(3) << 20);
+    for (float x : v) ASSERT_EQ(x, 0.0f);
+
+    std::vector<RGB> c(10, RGB(1.0f));
+    assignZeroed(c, 20);
+    for (const RGB& x : c) ASSERT_EQ(x.r + x.g + x.b, 0.0f);
+}
+
+TEST(MallocPolicy, AdviseIgnoresSmallAndNullRanges) {
+    adviseHugePages(nullptr, size_t(64) << 20);
+    std::vector<float> small(16);
+    adviseHugePages(small.data(), small.size() * sizeof(float));
+    EXPECT_EQ(small.size(), 16u);
+}
+
+// The kernel's own view of the mapping that holds p: its smaps "THPeligible" line.
+int thpEligible(const void* p) {
+    std::ifstream smaps("/proc/self/smaps");
+    std::string line;
+    bool inside = false;
+    const auto addr = reinterpret_cast<std::uintptr_t>(p);
+    while (std::getline(smaps, line)) {
+        std::uintptr_t lo = 0, hi = 0;
+        char dash = 0;
+        std::istringstream head(line);
+        if (line.find('-') != std::string::npos && (head >> std::hex >> lo >> dash >> hi) && dash == '-')
+            inside = addr >= lo && addr < hi;
+        else if (inside && line.rfind("THPeligible:", 0) == 0)
+            return std::stoi(line.substr(12));
+    }
+    return -1;
+}
+
+TEST(MallocPolicy, LargeBuffersAreAdvisedOntoHugePages) {
+    std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
+    std::string modes;
+    std::getline(mode, modes);
+    if (modes.empty() || modes.find("[never]") != std::string::npos) GTEST_SKIP() << "THP off: " << modes;
+    std::vector<float> v;
+    assignZeroed(v, size_t(16) << 20);  // 64 MiB: its middle lies in whole 2 MiB pages
+    EXPECT_EQ(thpEligible(v.data() + v.size() / 2), 1) << "THP mode " << modes;
+}
+
+}  // namespace
+}  // namespace lpm
