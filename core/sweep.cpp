@@ -15,7 +15,8 @@
 //
 // Segment (tau = sigma l, T = e^-tau, constant source Q):
 //   L_out = L T + Q e1,  Int L ds = L e1 + Q e2,
-//   e1 = l (1 - T)/tau,  e2 = l (l - e1)/tau   (series below tau = 1/4: no cancellation)
+//   e1 = l (1 - T)/tau,  e2 = l (l - e1)/tau   (below tau = 1/4 by series, no exp:
+//   segmentFactors)
 // Tallies: scattered/absorbed = albedo or (1 - albedo) times sum_voxels sigma Int L ds,
 // injected source = sum_voxels Q V / A_perp (the lattice covers each voxel exactly).
 #include <algorithm>
@@ -71,55 +72,108 @@ inline float expNegInline(float x) {
 constexpr int kLanes = 8, kChunk = 8 * kLanes;
 // Layout of a ray row: 3 channels of nuPad floats each, contiguous.
 
+// Which formulas a chunk's 8 segments need (optical depths tau = sigma l against 1/4).
+enum class TauRange { Small, Large, Mixed };
+
+// Segment factors T = e^-tau, e1 = l phi1(tau), e2 = l^2 phi2(tau), with
+// phi1 = (1 - e^-t)/t, phi2 = (t - 1 + e^-t)/t^2 (docs/performance.md, "The sweep kernel").
+// Below tau = 1/4: phi2 by its series (truncation < 2e-8 relative), then the identities
+// phi1 = 1 - tau phi2 and T = 1 - tau phi1: no exp, no division, and sigma e1 = 1 - T holds
+// to rounding. From 1/4 on: T by expNegInline, e1 = (1 - T)/sigma and e2 = (l - e1)/sigma
+// with 1/sigma from the plane. Mixed chunks compute both and select per lane.
+template <TauRange R>
+inline void segmentFactors(float sig, float invSig, float len, float len2, float& T, float& e1, float& e2) {
+    const float tau = sig * len;
+    float Ts = 1.0f, e1s = len, e2s = 0.5f * len2;
+    if constexpr (R != TauRange::Large) {
+        const float p2 =
+            0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120 - tau * (1.0f / 720 - tau * (1.0f / 5040)))));
+        const float p1 = 1.0f - tau * p2;
+        Ts = 1.0f - tau * p1;
+        e1s = len * p1;
+        e2s = len2 * p2;
+    }
+    float Tl = 1.0f, e1l = len, e2l = 0.5f * len2;
+    if constexpr (R != TauRange::Small) {
+        Tl = expNegInline(tau);
+        e1l = (1.0f - Tl) * invSig;
+        e2l = (len - e1l) * invSig;
+    }
+    if constexpr (R == TauRange::Small) {
+        T = Ts, e1 = e1s, e2 = e2s;
+    } else if constexpr (R == TauRange::Large) {
+        T = Tl, e1 = e1l, e2 = e2l;
+    } else {
+        const bool small = tau < 0.25f;
+        T = small ? Ts : Tl;
+        e1 = small ? e1s : e1l;
+        e2 = small ? e2s : e2l;
+    }
+}
+
+// One chunk: 8 rays (L0..L2, one per channel) over the chunk's 8 voxels (plane).
+template <bool Source, TauRange R>
+inline __attribute__((always_inline)) void segmentLanes(float len, float len2, float dk, float* __restrict plane,
+                                                        float* __restrict L0, float* __restrict L1,
+                                                        float* __restrict L2) {
+    const float* __restrict sig = plane;
+    const float* __restrict q = plane + kLanes;
+    float* __restrict d = plane + 4 * kLanes;
+    const float* __restrict invSig = plane + 7 * kLanes;
+    for (int i = 0; i < kLanes; ++i) {
+        float T, e1, e2;
+        segmentFactors<R>(sig[i], invSig[i], len, len2, T, e1, e2);
+        if (Source) {
+            const float I0 = L0[i] * e1 + q[i] * e2, I1 = L1[i] * e1 + q[kLanes + i] * e2,
+                        I2 = L2[i] * e1 + q[2 * kLanes + i] * e2;
+            L0[i] = L0[i] * T + q[i] * e1;
+            L1[i] = L1[i] * T + q[kLanes + i] * e1;
+            L2[i] = L2[i] * T + q[2 * kLanes + i] * e1;
+            d[i] += dk * I0;
+            d[kLanes + i] += dk * I1;
+            d[2 * kLanes + i] += dk * I2;
+        } else {
+            d[i] += dk * (L0[i] * e1);
+            d[kLanes + i] += dk * (L1[i] * e1);
+            d[2 * kLanes + i] += dk * (L2[i] * e1);
+            L0[i] *= T;
+            L1[i] *= T;
+            L2[i] *= T;
+        }
+    }
+}
+
+// The formulas a chunk needs, from its smallest and largest sigma (kept beside the planes
+// by gatherTile). Rounding is monotonic: hi len < 1/4 exactly when every sigma len is.
+inline TauRange chunkTauRange(const float* sigRange, float len) {
+    if (sigRange[1] * len < 0.25f) return TauRange::Small;
+    return sigRange[0] * len >= 0.25f ? TauRange::Large : TauRange::Mixed;
+}
+
 // One segment of length len for `chunks` x 8 rays (ray row L: channels nuPad apart) over
-// as many voxels of a plane row (chunk layout above).
+// as many voxels of a plane row (chunk layout above), each chunk with the formulas its
+// optical depths need (thin media: no exp at all); sigRange: each chunk's smallest and
+// largest sigma.
 // Deposits are added times dk (1 for a sweep of its own planes; the job's tally weight
 // when the planes are shared by a batch).
 template <bool Source>
-LPM_SIMD_CLONES void segmentChunks(int chunks, float len, float dk, float* __restrict plane, float* __restrict L,
-                                   size_t nuPad) {
+LPM_SIMD_CLONES void segmentChunks(int chunks, float len, float dk, float* __restrict plane,
+                                   const float* __restrict sigRange, float* __restrict L, size_t nuPad) {
     const float len2 = len * len;
     float* __restrict L0 = L;
     float* __restrict L1 = L + nuPad;
     float* __restrict L2 = L + 2 * nuPad;
-    for (int k = 0; k < chunks; ++k, plane += kChunk, L0 += kLanes, L1 += kLanes, L2 += kLanes) {
-        const float* __restrict sig = plane;
-        const float* __restrict q = plane + kLanes;
-        float* __restrict d = plane + 4 * kLanes;
-        const float* __restrict invSig = plane + 7 * kLanes;
-        for (int i = 0; i < kLanes; ++i) {
-            const float tau = sig[i] * len;
-            const float T = expNegInline(tau);
-            // l (1 - T) / tau and l (l - e1) / tau without a division (used for tau >= 1/4 only).
-            const float e1l = (1.0f - T) * invSig[i];
-            const float e2l = (len - e1l) * invSig[i];
-            // Series of (1 - e^-t)/t and (t - 1 + e^-t)/t^2, truncation < 2e-9 below 1/4.
-            const float e1s =
-                len *
-                (1.0f - tau * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120 - tau * (1.0f / 720))))));
-            const float e2s =
-                len2 *
-                (0.5f -
-                 tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120 - tau * (1.0f / 720 - tau * (1.0f / 5040))))));
-            const bool small = tau < 0.25f;
-            const float e1 = small ? e1s : e1l, e2 = small ? e2s : e2l;
-            if (Source) {
-                const float I0 = L0[i] * e1 + q[i] * e2, I1 = L1[i] * e1 + q[kLanes + i] * e2,
-                            I2 = L2[i] * e1 + q[2 * kLanes + i] * e2;
-                L0[i] = L0[i] * T + q[i] * e1;
-                L1[i] = L1[i] * T + q[kLanes + i] * e1;
-                L2[i] = L2[i] * T + q[2 * kLanes + i] * e1;
-                d[i] += dk * I0;
-                d[kLanes + i] += dk * I1;
-                d[2 * kLanes + i] += dk * I2;
-            } else {
-                d[i] += dk * (L0[i] * e1);
-                d[kLanes + i] += dk * (L1[i] * e1);
-                d[2 * kLanes + i] += dk * (L2[i] * e1);
-                L0[i] *= T;
-                L1[i] *= T;
-                L2[i] *= T;
-            }
+    for (int k = 0; k < chunks; ++k, plane += kChunk, sigRange += 2, L0 += kLanes, L1 += kLanes, L2 += kLanes) {
+        switch (chunkTauRange(sigRange, len)) {
+        case TauRange::Small:
+            segmentLanes<Source, TauRange::Small>(len, len2, dk, plane, L0, L1, L2);
+            break;
+        case TauRange::Large:
+            segmentLanes<Source, TauRange::Large>(len, len2, dk, plane, L0, L1, L2);
+            break;
+        case TauRange::Mixed:
+            segmentLanes<Source, TauRange::Mixed>(len, len2, dk, plane, L0, L1, L2);
+            break;
         }
     }
 }
@@ -285,9 +339,11 @@ inline size_t planeIndex(const PlaneRow* rows, int cv, int s, int cu) {
     return pr.base + (size_t((cv % K) * K + s) * pr.width + size_t(cu / K - pr.first)) * kChunk + size_t(cu % K);
 }
 
-// One tile into the planes (sigma, the source q = sigma srcScale src, deposits zeroed); an
-// unallocated tile inside a span reads as empty.
-void gatherTile(const AxisFrame& f, const Job& job, const PlaneRow* rows, float* P, int layer, int tu, int tv) {
+// One tile into the planes (sigma, the source q = sigma srcScale src, deposits zeroed) and
+// each chunk's smallest and largest sigma into R (2 floats a chunk); an unallocated tile
+// inside a span reads as empty.
+void gatherTile(const AxisFrame& f, const Job& job, const PlaneRow* rows, float* P, float* R, int layer, int tu,
+                int tv) {
     constexpr int K = Medium::kTile;
     const std::int32_t slot = f.tileSlot(layer, tu, tv);
     const AxisFrame::TileWalk w = f.tileWalk(slot == -2 ? -1 : slot, layer, tu, tv);
@@ -297,8 +353,11 @@ void gatherTile(const AxisFrame& f, const Job& job, const PlaneRow* rows, float*
     const size_t ss = job.srcStride;
     for (int s = 0; s < w.nA; ++s)
         for (int lv = 0; lv < w.nV; ++lv) {
-            float* q = &P[planeIndex(rows, tv * K + lv, s, tu * K)];
+            const size_t at = planeIndex(rows, tv * K + lv, s, tu * K);
+            float* q = &P[at];
+            float* range = &R[2 * (at / kChunk)];
             std::fill_n(q, kChunk, 0.0f);
+            range[0] = range[1] = 0.0f;
             if (slot == -2) continue;
             const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
             for (int lu = 0; lu < w.nU; ++lu) {
@@ -309,6 +368,8 @@ void gatherTile(const AxisFrame& f, const Job& job, const PlaneRow* rows, float*
                 if (src)
                     for (int c = 0; c < 3; ++c) q[(1 + c) * kLanes + lu] = sg * sc[c] * src[x * ss + c];
             }
+            range[0] = *std::min_element(q, q + kLanes);
+            range[1] = *std::max_element(q, q + kLanes);
         }
 }
 
@@ -369,6 +430,7 @@ public:
             total += size_t(pr.width) * K * K * kChunk;
         }
         assignZeroed(P_, total);
+        assignZeroed(range_, 2 * (total / kChunk));
         spanLo_.assign(size_t(f_.nv), 0);
         spanHi_.assign(size_t(f_.nv), 0);
     }
@@ -389,7 +451,7 @@ public:
                 if (lo < hi) occupied_.push_back(cv);
             }
             for (int tu = std::max(first, 0); first >= 0 && tu <= last; ++tu)
-                gatherTile(f_, srcJob, rows_.data(), P_.data(), layer, tu, tv);
+                gatherTile(f_, srcJob, rows_.data(), P_.data(), range_.data(), layer, tu, tv);
         }
         return any;
     }
@@ -403,6 +465,8 @@ public:
 
     const PlaneRow* rows() const { return rows_.data(); }
     float* data() { return P_.data(); }
+    /// Per chunk of data(): its smallest and largest sigma.
+    const float* sigRanges() const { return range_.data(); }
     const int* spanLo() const { return spanLo_.data(); }
     const int* spanHi() const { return spanHi_.data(); }
     /// The voxel rows of this layer with allocated tiles, in increasing order.
@@ -412,6 +476,7 @@ private:
     AxisFrame f_;
     std::vector<PlaneRow> rows_;        // per tile row, over all layers
     std::vector<float> P_;              // the current tile layer
+    std::vector<float> range_;          // per chunk of P_: smallest and largest sigma
     std::vector<int> spanLo_, spanHi_;  // per voxel row: columns in allocated tiles of this layer
     std::vector<int> occupied_;         // voxel rows with spanLo < spanHi
 };
@@ -795,9 +860,12 @@ private:
             // lo is tile-aligned; hi rounds up into the padding columns (sigma = 0 there).
             const int chunks = (hi - lo + K - 1) / K;
             prepareColumns(row, lo, lo + chunks * K);
-            float* plane = &planes_->data()[planeIndex(planes_->rows(), vr, slice_, lo)];
-            if (job_.src) segmentChunks<true>(chunks, float(e.len), dk_, plane, at(row, 0, lo), size_t(cap_[row]));
-            else segmentChunks<false>(chunks, float(e.len), dk_, plane, at(row, 0, lo), size_t(cap_[row]));
+            const size_t first = planeIndex(planes_->rows(), vr, slice_, lo);  // lo tile-aligned: a whole chunk
+            float* plane = &planes_->data()[first];
+            const float* range = &planes_->sigRanges()[2 * (first / kChunk)];
+            if (job_.src)
+                segmentChunks<true>(chunks, float(e.len), dk_, plane, range, at(row, 0, lo), size_t(cap_[row]));
+            else segmentChunks<false>(chunks, float(e.len), dk_, plane, range, at(row, 0, lo), size_t(cap_[row]));
             segs_ += std::uint64_t(hi - lo);
         }
     }

@@ -135,6 +135,8 @@ private:
         double lamU = du_ > 0 ? (cu + 1 - p) * stepU_ : (du_ < 0 ? (p - cu) * stepU_ : kInf);
         double lamV = dv_ > 0 ? (cv + 1 - q) * stepV_ : (dv_ < 0 ? (q - cv) * stepV_ : kInf);
         double lam = 0;
+        const int cu0 = cu, cv0 = cv;
+        int stepsU = 0, stepsV = 0;  // face crossings of this slice, before wrapping
         for (;;) {
             const double lamN = std::min(std::min(lamU, lamV), 1.0);
             const double len = (lamN - lam) * sliceLen_;
@@ -159,6 +161,7 @@ private:
             if (lamN >= 1.0) break;
             if (lamU <= lamV) {
                 cu += su_;
+                ++stepsU;
                 lamU += stepU_;
                 if (cu < 0 || cu >= nu_) {  // left through a lateral face: re-enter opposite
                     cu = cu < 0 ? nu_ - 1 : 0;
@@ -166,6 +169,7 @@ private:
                 }
             } else {
                 cv += sv_;
+                ++stepsV;
                 lamV += stepV_;
                 if (cv < 0 || cv >= nv_) {
                     cv = cv < 0 ? nv_ - 1 : 0;
@@ -173,12 +177,18 @@ private:
                 }
             }
         }
-        p += du_;
-        q += dv_;
-        p -= std::floor(p / nu_) * nu_;
-        q -= std::floor(q / nv_) * nv_;
-        pu_[k] = p;
-        pv_[k] = q;
+        pu_[k] = nextPosition(p + du_, cu0 + su_ * stepsU, nu_);
+        pv_[k] = nextPosition(q + dv_, cv0 + sv_ * stepsV, nv_);
+    }
+
+    // The ray's position for the next slice: inside the cell the DDA's crossings put it in
+    // (unwrapped index cell), so a ray that reaches a face exactly at the slice's end (or
+    // past it by rounding) crosses it, re-entering at a lateral face, in the next slice's
+    // DDA, never by the wrap alone; then wrapped into [0, n).
+    static double nextPosition(double p, int cell, int n) {
+        p = std::clamp(p, double(cell), std::nextafter(double(cell + 1), double(cell)));
+        const double wrapped = p - std::floor(p / n) * n;
+        return wrapped < n ? wrapped : std::nextafter(double(n), 0.0);
     }
 
     void reenter(double* Lk) {
