@@ -339,37 +339,62 @@ inline size_t planeIndex(const PlaneRow* rows, int cv, int s, int cu) {
     return pr.base + (size_t((cv % K) * K + s) * pr.width + size_t(cu / K - pr.first)) * kChunk + size_t(cu % K);
 }
 
-// One tile into the planes (sigma, the source q = sigma srcScale src, deposits zeroed) and
-// each chunk's smallest and largest sigma into R (2 floats a chunk); an unallocated tile
-// inside a span reads as empty.
-void gatherTile(const AxisFrame& f, const Job& job, const PlaneRow* rows, float* P, float* R, int layer, int tu,
-                int tv) {
+// What a gather reads: the medium's sigma and the job's source (q = sigma srcScale src).
+struct GatherSource {
+    const float* sigma;
+    const float* src;
+    size_t stride;
+    float scale[3];
+    GatherSource(const Medium& m, const Job& job)
+        : sigma(m.sigmaT.data()), src(job.src), stride(job.srcStride),
+          scale{job.srcScale.r, job.srcScale.g, job.srcScale.b} {}
+};
+
+// One chunk (the nU voxels of a tile row segment from storage index x0, stride sU) into
+// the planes at q: sigma, the source, deposits zeroed, 1/sigma; its smallest and largest
+// sigma into range. empty: an unallocated tile inside a span (reads as empty).
+inline void gatherChunk(const GatherSource& g, bool empty, size_t x0, size_t sU, int nU, float* q, float* range) {
+    std::fill_n(q, kChunk, 0.0f);
+    range[0] = range[1] = 0.0f;
+    if (empty) return;
+    for (int lu = 0; lu < nU; ++lu) {
+        const size_t x = x0 + size_t(lu) * sU;
+        const float sg = g.sigma[x];
+        q[lu] = sg;
+        if (g.src)
+            for (int c = 0; c < 3; ++c) q[(1 + c) * kLanes + lu] = sg * g.scale[c] * g.src[x * g.stride + c];
+    }
+    // 1/sigma over the whole chunk at once: one vector division (padding lanes are 0).
+    for (int i = 0; i < kLanes; ++i) q[7 * kLanes + i] = q[i] > 0 ? 1.0f / q[i] : 0.0f;
+    range[0] = *std::min_element(q, q + kLanes);
+    range[1] = *std::max_element(q, q + kLanes);
+}
+
+// Tiles first..last of tile row tv into the planes (and each chunk's sigma range into R,
+// 2 floats a chunk), in plane order (voxel row, slice, tile), so the writes stream through
+// consecutive chunks; the tiles' reads (a few KB each) stay in cache across the row.
+void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* rows, float* P, float* R, int layer,
+                   int tv, int first, int last, std::vector<AxisFrame::TileWalk>& walks,
+                   std::vector<std::uint8_t>& empty) {
     constexpr int K = Medium::kTile;
-    const std::int32_t slot = f.tileSlot(layer, tu, tv);
-    const AxisFrame::TileWalk w = f.tileWalk(slot == -2 ? -1 : slot, layer, tu, tv);
-    const float sc[3] = {job.srcScale.r, job.srcScale.g, job.srcScale.b};
-    const float* sigma = f.m.sigmaT.data();
-    const float* src = job.src;
-    const size_t ss = job.srcStride;
-    for (int s = 0; s < w.nA; ++s)
-        for (int lv = 0; lv < w.nV; ++lv) {
-            const size_t at = planeIndex(rows, tv * K + lv, s, tu * K);
-            float* q = &P[at];
-            float* range = &R[2 * (at / kChunk)];
-            std::fill_n(q, kChunk, 0.0f);
-            range[0] = range[1] = 0.0f;
-            if (slot == -2) continue;
-            const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
-            for (int lu = 0; lu < w.nU; ++lu) {
-                const size_t x = x0 + size_t(lu) * w.sU;
-                const float sg = sigma[x];
-                q[lu] = sg;
-                q[7 * kLanes + lu] = sg > 0 ? 1.0f / sg : 0.0f;
-                if (src)
-                    for (int c = 0; c < 3; ++c) q[(1 + c) * kLanes + lu] = sg * sc[c] * src[x * ss + c];
+    const int n = last - first + 1;
+    walks.resize(size_t(n));
+    empty.resize(size_t(n));
+    for (int i = 0; i < n; ++i) {
+        const std::int32_t slot = f.tileSlot(layer, first + i, tv);
+        empty[size_t(i)] = slot == -2;
+        walks[size_t(i)] = f.tileWalk(slot == -2 ? -1 : slot, layer, first + i, tv);
+    }
+    const int nV = walks[0].nV, nA = walks[0].nA;  // the same for every tile of the row
+    for (int lv = 0; lv < nV; ++lv)
+        for (int s = 0; s < nA; ++s) {
+            const size_t at = planeIndex(rows, tv * K + lv, s, first * K);
+            for (int i = 0; i < n; ++i) {
+                const AxisFrame::TileWalk& w = walks[size_t(i)];
+                const size_t chunk = at / kChunk + size_t(i);
+                gatherChunk(g, empty[size_t(i)], w.base + size_t(s) * w.sA + size_t(lv) * w.sV, w.sU, w.nU,
+                            &P[chunk * kChunk], &R[2 * chunk]);
             }
-            range[0] = *std::min_element(q, q + kLanes);
-            range[1] = *std::max_element(q, q + kLanes);
         }
 }
 
@@ -450,8 +475,9 @@ public:
                 spanHi_[cv] = hi;
                 if (lo < hi) occupied_.push_back(cv);
             }
-            for (int tu = std::max(first, 0); first >= 0 && tu <= last; ++tu)
-                gatherTile(f_, srcJob, rows_.data(), P_.data(), range_.data(), layer, tu, tv);
+            if (first >= 0)
+                gatherTileRow(f_, GatherSource(f_.m, srcJob), rows_.data(), P_.data(), range_.data(), layer, tv, first,
+                              last, walks_, empty_);
         }
         return any;
     }
@@ -479,6 +505,8 @@ private:
     std::vector<float> range_;          // per chunk of P_: smallest and largest sigma
     std::vector<int> spanLo_, spanHi_;  // per voxel row: columns in allocated tiles of this layer
     std::vector<int> occupied_;         // voxel rows with spanLo < spanHi
+    std::vector<AxisFrame::TileWalk> walks_;  // gather scratch: one tile row's tiles
+    std::vector<std::uint8_t> empty_;
 };
 
 // The state of one sweep: rays, the planes of the current tile layer (its own, or a
