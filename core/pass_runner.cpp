@@ -20,15 +20,19 @@ std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>& jobs, 
         if (it == keys.end()) keys.push_back({&j});
         else it->push_back(&j);
     }
+    // Within a key, the jobs of sign +1 before those of -1 (each in job order), cut into
+    // `split` contiguous parts: with two parts and as many jobs of each sign, a batch holds
+    // one sign, so each tile layer is gathered and scattered once for all its jobs (dealt
+    // alternately, both signs, every layer twice for half as many).
+    for (auto& k : keys)
+        std::stable_partition(k.begin(), k.end(), [](const Job* j) { return j->sign > 0; });
     // Batch s of every key before batch s + 1 of any: the halves of the list that two
     // threads take first then hold one batch of each axis (the axes' costs differ).
     std::vector<std::vector<const Job*>> batches;
     for (int part = 0; part < split; ++part)
         for (const auto& k : keys) {
-            const size_t n = std::min(k.size(), size_t(split));
-            if (size_t(part) >= n) continue;
-            batches.emplace_back();
-            for (size_t i = size_t(part); i < k.size(); i += n) batches.back().push_back(k[i]);
+            const size_t lo = k.size() * size_t(part) / size_t(split), hi = k.size() * size_t(part + 1) / size_t(split);
+            if (lo < hi) batches.emplace_back(k.begin() + long(lo), k.begin() + long(hi));
         }
     return batches;
 }

@@ -53,8 +53,9 @@ private:
 };
 
 /// The jobs grouped into sweep batches (sweepStepBatch): per sweep axis and source (in order
-/// of first appearance), the jobs dealt alternately into `split` batches in job order. The
-/// grouping depends on the jobs only, never on the thread count.
+/// of first appearance), the jobs of sign +1 then those of -1, cut into `split` contiguous
+/// batches (so with two, one sign each when the signs are balanced); job order within each
+/// sign. The grouping depends on the jobs only, never on the thread count.
 std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>& jobs, int split);
 
 }  // namespace lpm

@@ -74,6 +74,7 @@ TEST(PassRunner, BatchesPartitionJobsByAxisAndSource) {
             EXPECT_TRUE(seen.insert(j).second) << "a job in two batches";
             EXPECT_EQ(j->axis, b[0]->axis);
             EXPECT_EQ(j->srcScale.r, b[0]->srcScale.r);
+            EXPECT_EQ(j->sign, b[0]->sign) << "one sign a batch: each layer gathered once for all its jobs";
         }
         // Job order within a batch (thread-count independent sums).
         for (size_t i = 1; i < b.size(); ++i) EXPECT_LT(b[i - 1], b[i]);
