@@ -17,8 +17,8 @@
 #include "core/delta_m.h"
 #include "core/env_binning.h"
 #include "core/gmres.h"
-#include "core/malloc_policy.h"
 #include "core/lpm_solve.h"
+#include "core/malloc_policy.h"
 #include "core/parallel.h"
 #include "core/subdivide.h"
 

@@ -24,8 +24,7 @@ std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>& jobs, 
     // `split` contiguous parts: with two parts and as many jobs of each sign, a batch holds
     // one sign, so each tile layer is gathered and scattered once for all its jobs (dealt
     // alternately, both signs, every layer twice for half as many).
-    for (auto& k : keys)
-        std::stable_partition(k.begin(), k.end(), [](const Job* j) { return j->sign > 0; });
+    for (auto& k : keys) std::stable_partition(k.begin(), k.end(), [](const Job* j) { return j->sign > 0; });
     // Batch s of every key before batch s + 1 of any: the halves of the list that two
     // threads take first then hold one batch of each axis (the axes' costs differ).
     std::vector<std::vector<const Job*>> batches;
@@ -111,9 +110,7 @@ PassRunner::PassRunner(const Medium& m, FoldShape shape, const std::vector<std::
 
 void PassRunner::releaseBuffers() const { buffers_ = std::vector<std::vector<float>>(); }
 
-std::vector<float>& PassRunner::zeroedBuffer(size_t i, size_t len) const {
-    return assignZeroed(buffers_[i], len);
-}
+std::vector<float>& PassRunner::zeroedBuffer(size_t i, size_t len) const { return assignZeroed(buffers_[i], len); }
 
 void PassRunner::run(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const {
     if (isotropic(jobs)) runIsotropic(jobs, r, total, depositSh, out);

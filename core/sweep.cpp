@@ -165,15 +165,15 @@ LPM_SIMD_CLONES void segmentChunks(int chunks, float len, float dk, float* __res
     float* __restrict L2 = L + 2 * nuPad;
     for (int k = 0; k < chunks; ++k, plane += kChunk, sigRange += 2, L0 += kLanes, L1 += kLanes, L2 += kLanes) {
         switch (chunkTauRange(sigRange, len)) {
-        case TauRange::Small:
-            segmentLanes<Source, TauRange::Small>(len, len2, dk, plane, L0, L1, L2);
-            break;
-        case TauRange::Large:
-            segmentLanes<Source, TauRange::Large>(len, len2, dk, plane, L0, L1, L2);
-            break;
-        case TauRange::Mixed:
-            segmentLanes<Source, TauRange::Mixed>(len, len2, dk, plane, L0, L1, L2);
-            break;
+            case TauRange::Small:
+                segmentLanes<Source, TauRange::Small>(len, len2, dk, plane, L0, L1, L2);
+                break;
+            case TauRange::Large:
+                segmentLanes<Source, TauRange::Large>(len, len2, dk, plane, L0, L1, L2);
+                break;
+            case TauRange::Mixed:
+                segmentLanes<Source, TauRange::Mixed>(len, len2, dk, plane, L0, L1, L2);
+                break;
         }
     }
 }
@@ -346,8 +346,8 @@ struct GatherSource {
     size_t stride;
     float scale[3];
     GatherSource(const Medium& m, const Job& job)
-        : sigma(m.sigmaT.data()), src(job.src), stride(job.srcStride),
-          scale{job.srcScale.r, job.srcScale.g, job.srcScale.b} {}
+        : sigma(m.sigmaT.data()), src(job.src),
+          stride(job.srcStride), scale{job.srcScale.r, job.srcScale.g, job.srcScale.b} {}
 };
 
 // One chunk (the nU voxels of a tile row segment from storage index x0, stride sU) into
@@ -500,11 +500,11 @@ public:
 
 private:
     AxisFrame f_;
-    std::vector<PlaneRow> rows_;        // per tile row, over all layers
-    std::vector<float> P_;              // the current tile layer
-    std::vector<float> range_;          // per chunk of P_: smallest and largest sigma
-    std::vector<int> spanLo_, spanHi_;  // per voxel row: columns in allocated tiles of this layer
-    std::vector<int> occupied_;         // voxel rows with spanLo < spanHi
+    std::vector<PlaneRow> rows_;              // per tile row, over all layers
+    std::vector<float> P_;                    // the current tile layer
+    std::vector<float> range_;                // per chunk of P_: smallest and largest sigma
+    std::vector<int> spanLo_, spanHi_;        // per voxel row: columns in allocated tiles of this layer
+    std::vector<int> occupied_;               // voxel rows with spanLo < spanHi
     std::vector<AxisFrame::TileWalk> walks_;  // gather scratch: one tile row's tiles
     std::vector<std::uint8_t> empty_;
 };

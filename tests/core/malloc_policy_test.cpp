@@ -51,8 +51,7 @@ int thpEligible(const void* p) {
         std::istringstream head(line);
         if (line.find('-') != std::string::npos && (head >> std::hex >> lo >> dash >> hi) && dash == '-')
             inside = addr >= lo && addr < hi;
-        else if (inside && line.rfind("THPeligible:", 0) == 0)
-            return std::stoi(line.substr(12));
+        else if (inside && line.rfind("THPeligible:", 0) == 0) return std::stoi(line.substr(12));
     }
     return -1;
 }

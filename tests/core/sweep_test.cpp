@@ -148,7 +148,7 @@ TEST(SweepKernel, MatchesReferenceSweep) {
 TEST(SweepKernel, ThinThickAndMixedChunksMatchReference) {
     const std::vector<Vec3> dirs = {{1, 0.7, -0.4}, {-0.3, -1, 0.9}, {0.6, 0.2, 1}, {0, 0, -1}};
     struct Range {
-        double lo, hi;  // sigma per voxel length
+        double lo, hi;   // sigma per voxel length
         bool alternate;  // alternate lanes between lo and hi instead of a uniform draw
     };
     int cases = 0;
