@@ -144,7 +144,7 @@ inline __attribute__((always_inline)) void segmentLanes(float len, float len2, f
 }
 
 // The formulas a chunk needs, from its smallest and largest sigma (kept beside the planes
-// by gatherTile). Rounding is monotonic: hi len < 1/4 exactly when every sigma len is.
+// by the gather, gatherChunk). Rounding is monotonic: hi len < 1/4 exactly when every sigma len is.
 inline TauRange chunkTauRange(const float* sigRange, float len) {
     if (sigRange[1] * len < 0.25f) return TauRange::Small;
     return sigRange[0] * len >= 0.25f ? TauRange::Large : TauRange::Mixed;
