@@ -159,9 +159,9 @@ void PassRunner::runGeneral(const std::vector<Job>& jobs, int r, Tally& total, b
 // Isotropic bins, SH order 0 and a voxel-constant source: every job folds as one scalar
 // (its bin coefficient) times the same pair (1 for the bin, shPerBin for band 0), so jobs
 // deposit straight into fixed accumulators: no per-direction buffer and no fold pass.
-// The accumulators are the sweep batches (jobs of one axis and one source, dealt
-// alternately into kBatchSplit groups, in job order; sweepStepBatch shares their planes),
-// so the sums are the same for any thread count.
+// The accumulators are the sweep batches (jobs of one axis and one source, one sign a
+// batch, in job order: sweepBatches; sweepStepBatch shares their planes), so the sums are
+// the same for any thread count.
 void PassRunner::runIsotropic(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh,
                               std::vector<float>& out) const {
     constexpr int kBatchSplit = 2;
