@@ -66,21 +66,33 @@ TEST(PassRunner, BatchesPartitionJobsByAxisAndSource) {
     std::vector<Job> jobs = factory.sourceJobs(src, 1, RGB(0.9f));
     const std::vector<Job> more = factory.sourceJobs(src, 1, RGB(0.5f));  // another source scale
     jobs.insert(jobs.end(), more.begin(), more.end());
-    const auto batches = sweepBatches(jobs, 2);
-    std::set<const Job*> seen;
-    for (const auto& b : batches) {
-        ASSERT_FALSE(b.empty());
-        for (const Job* j : b) {
-            EXPECT_TRUE(seen.insert(j).second) << "a job in two batches";
-            EXPECT_EQ(j->axis, b[0]->axis);
-            EXPECT_EQ(j->srcScale.r, b[0]->srcScale.r);
-            EXPECT_EQ(j->sign, b[0]->sign) << "one sign a batch: each layer gathered once for all its jobs";
-        }
-        // Job order within a batch (thread-count independent sums).
-        for (size_t i = 1; i < b.size(); ++i) EXPECT_LT(b[i - 1], b[i]);
+    // The factory's order (each face's directions together) and one with the signs
+    // alternating job by job: batches hold one sign either way.
+    std::vector<Job> alternating;
+    std::vector<const Job*> plus, minus;
+    for (const Job& j : jobs) (j.sign > 0 ? plus : minus).push_back(&j);
+    ASSERT_EQ(plus.size(), minus.size());
+    for (size_t i = 0; i < plus.size(); ++i) {
+        alternating.push_back(*plus[i]);
+        alternating.push_back(*minus[i]);
     }
-    EXPECT_EQ(seen.size(), jobs.size());
-    EXPECT_EQ(batches.size(), 12u) << "3 axes x 2 sources x 2 halves";
+    for (const std::vector<Job>* list : {&jobs, &alternating}) {
+        const auto batches = sweepBatches(*list, 2);
+        std::set<const Job*> seen;
+        for (const auto& b : batches) {
+            ASSERT_FALSE(b.empty());
+            for (const Job* j : b) {
+                EXPECT_TRUE(seen.insert(j).second) << "a job in two batches";
+                EXPECT_EQ(j->axis, b[0]->axis);
+                EXPECT_EQ(j->srcScale.r, b[0]->srcScale.r);
+                EXPECT_EQ(j->sign, b[0]->sign) << "one sign a batch: each layer gathered once for all its jobs";
+            }
+            // Job order within a batch (thread-count independent sums).
+            for (size_t i = 1; i < b.size(); ++i) EXPECT_LT(b[i - 1], b[i]);
+        }
+        EXPECT_EQ(seen.size(), list->size());
+        EXPECT_EQ(batches.size(), 12u) << "3 axes x 2 sources x 2 halves";
+    }
 }
 
 // The runner keeps its deposit buffers from pass to pass (they were faulted in again every
