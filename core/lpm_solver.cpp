@@ -231,7 +231,9 @@ bool LpmSolve::iterate() {
             return false;
         }
         if (plan_.krylov && pass_ >= 4 && ratio > 0.8 && ratio < 1.0) {
-            const double more = std::log(s_.tolerance * res_.injected / last) / std::log(ratio);
+            // Passes j until the stop test above holds: last ratio^j rho/(1-rho) <= tol injected.
+            const double more =
+                std::log(s_.tolerance * res_.injected / (last * (ratio / (1.0 - ratio)))) / std::log(ratio);
             if (more > plan_.krylovAfter) {
                 char buf[240];
                 std::snprintf(buf, sizeof buf,
