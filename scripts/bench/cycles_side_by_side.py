@@ -407,6 +407,21 @@ def fit_error(spps, errs, ref_spp):
     return float(a), float(beta)
 
 
+def timing_model(path):
+    """Cycles' time model t = t0 + c spp from the renders of a `render` run's TIMINGS.json (its
+    warm-up as t0, its ladder for c), and a line saying what was rendered."""
+    with open(path) as f:
+        t = json.load(f)
+    runs = [r for r in t["renders"] if r["kind"] == "ladder"]
+    warm = [r["seconds"] for r in t["renders"] if r["kind"] == "warmup"]
+    if len(runs) < 2:
+        raise Fail(2, "%s: a time model needs at least two ladder renders" % path)
+    t0, c = fit_time([r["spp"] for r in runs], [r["seconds"] for r in runs], warm[0] if warm else None)
+    what = "%dx%d, %s spp: %s s" % (t["width"], t["height"], ", ".join(str(r["spp"]) for r in runs),
+                                   ", ".join("%.2f" % r["seconds"] for r in runs))
+    return t0, c, what
+
+
 def fit_time(spps, secs, t0=None):
     """t = t0 + c spp: t0 the per-render overhead (the 1-sample warm-up's time when given,
     else the least-squares intercept, at least 0), c >= 0 by least squares through t0."""
@@ -447,6 +462,10 @@ def cmd_compare(argv):
     p.add_argument("--white-lpm")
     p.add_argument("--black-lpm")
     p.add_argument("--hd", type=size, default=(1920, 1080))
+    p.add_argument("--time-runs", help="timing renders at the comparison's size (TIMINGS.json of a `render` run): "
+                   "Cycles' time model from them instead of the ladder's own times")
+    p.add_argument("--hd-time-runs", help="timing renders at the HD size: Cycles' HD time model from them "
+                   "instead of the sample time scaled by the pixel count")
     p.add_argument("--md")
     p.add_argument("--side-by-side")
     p.add_argument("--diff-scale", type=float, default=0.05,
@@ -577,21 +596,36 @@ def cmd_compare(argv):
             "ladder; the reference's %d spp took %s s, the model says %s s)." % (
                 t0, c, "the 1-sample warm-up" if warm else "the ladder's intercept", ref_spp,
                 fmt_s(ref_run["seconds"]), fmt_s(t0 + c * ref_spp)))
+        if a.time_runs:
+            t0, c, runs = timing_model(a.time_runs)
+            out("Timed again in this run (%s; the ladder's images keep their errors, these renders only give "
+                "the times): t = %.2f s + %.4g s x spp; this model is the one used below." % (runs, t0, c))
+        hd_model = timing_model(a.hd_time_runs) if a.hd_time_runs else None
+        if hd_model:
+            out("Cycles rendered at %dx%d in this run (%s): t = %.2f s + %.4g s x spp, %.1fx the sample time "
+                "at %dx%d; the HD columns below use this model, with Cycles' error at a given spp taken "
+                "from the %dx%d ladder." % (a.hd[0], a.hd[1], hd_model[2], hd_model[0], hd_model[1],
+                                            hd_model[1] / c, W, H, W, H))
         out()
         hd_ratio = (a.hd[0] * a.hd[1]) / float(pixels)
         hd_cov = (a.hd[1] / float(H)) ** 2
         out("### Cycles time to match lpmbake's error")
         out()
+        if hd_model:
+            hd_how = ("Cycles' HD time from the HD renders' model above (in brackets, for comparison: the "
+                      "sample time at %dx%d scaled by (%d/%d)^2 = %.2f)" % (W, H, a.hd[1], H, hd_cov))
+        else:
+            hd_how = ("Cycles' sample time scaled by the pixel count (x%.2f; an upper bound: the extra pixels "
+                      "of a wider frame are mostly background; scaling by (%d/%d)^2 = %.2f gives the value in "
+                      "brackets), its per-render overhead t0 kept; the HD Cycles times are EXTRAPOLATED, not "
+                      "rendered" % (hd_ratio, a.hd[1], H, hd_cov))
         out("Both errors against the truth: lpmbake's measured error minus the reference's noise in "
             "quadrature, e^2 = err^2 - a/%d, and Cycles' sqrt(a/spp), so spp = a / e^2 (a from the fit "
             "above). Where lpmbake's error is not clearly above the reference's noise (err^2 < 2 a/%d) "
             "it is not resolved by this reference: the table gives the lower bound spp >= a / err^2 "
             "(all of the measured error counted as lpmbake's) and marks it >=. HD: %dx%d, same vertical "
-            "field of view; Cycles' sample time scaled by the pixel count (x%.2f; an upper bound: the "
-            "extra pixels of a wider frame are mostly background; scaling by (%d/%d)^2 = %.2f gives the "
-            "value in brackets), its per-render overhead t0 kept; lpmbake's bake as measured, its render "
-            "%s. The HD Cycles times are EXTRAPOLATED, not rendered." % (
-                ref_spp, ref_spp, a.hd[0], a.hd[1], hd_ratio, a.hd[1], H, hd_cov,
+            "field of view; %s; lpmbake's bake as measured, its render %s." % (
+                ref_spp, ref_spp, a.hd[0], a.hd[1], hd_how,
                 "measured at HD" if any(r.get("render_hd_s") for r in lpms) else
                 "scaled by the pixel count (extrapolated)"))
         out()
@@ -611,7 +645,7 @@ def cmd_compare(argv):
                 tl = r["seconds"]
                 hd_render = r.get("render_hd_s") or r["render_s"] * hd_ratio
                 tl_hd = r["bake_s"] + hd_render
-                tc_hd = t0 + c * spp * hd_ratio
+                tc_hd = hd_model[0] + hd_model[1] * spp if hd_model else t0 + c * spp * hd_ratio
                 tc_hd_lo = t0 + c * spp * hd_cov
                 err_s = "%.4f / %s" % (r[key], ("%.4f" % math.sqrt(e2)) if resolved else "unresolved")
                 out("| %s | %s | %s | %s%.0f | %s%s | %s | %s%s | %s%s [%s] | %s | %s%s |" % (

@@ -22,7 +22,8 @@
 #       [--res 124] [--width 192] [--height 192] [--spp-ladder 16,64,256,1024] [--ref-spp 4096]
 #       [--extra-spp N] [--density-scale 0.25] [--albedo 0.9] [--g 0] [--env SKY]
 #       [--fov-y 40] [--eye X,Y,Z --target X,Y,Z --up X,Y,Z] [--step-rate 0.5] [--bounces 256]
-#       [--setting NAME='LPMBAKE OPTIONS' ...] [--no-hd] [--threads N]
+#       [--setting NAME='LPMBAKE OPTIONS' ...] [--no-hd] [--hd-cycles-spp 4,16]
+#       [--time-spp 16,64,256] [--threads N]
 #       [--max-brightness-diff 0.1] [--max-coverage-diff 0.02]
 #       [--out DIR] [--lpmbake PATH] [--make-volume PATH] [--cycles-from DIR]
 #
@@ -31,7 +32,14 @@
 # --rays-per-voxel 1), cheap (--directions-per-face 2 --rays-per-voxel 1), default, fine
 # (--directions-per-face 8 --rays-per-voxel 3). --cycles-from DIR reuses the Cycles renders
 # of an earlier run in DIR (same camera, ladder, reference spp, step rate, bounces, density
-# scale, albedo, g: checked) to compare another lpmbake against them without re-rendering.
+# scale, albedo, g: checked) to compare another lpmbake against them without re-rendering;
+# Cycles is then timed again at --time-spp (default 16,64,256; `none` keeps DIR's times), so
+# both renderers' seconds come from this run's machine state.
+#
+# HD: lpmbake render at 1920x1080 (timed), and Cycles rendered at 1920x1080 at
+# --hd-cycles-spp (default 4,16; `none`: the HD Cycles times are then extrapolated from the
+# sample time by the pixel count) for its HD time model; Cycles' error at a given spp comes
+# from the WxH ladder.
 #
 # --quick: a small plume (--res 32, 16k voxels), 48x48 pixels, ladder 4,16, reference 64,
 # no HD render: a smoke test of the whole pipeline (about 30 s on 2 cores). Exits non-zero
@@ -55,7 +63,7 @@ OUT=$ROOT/out/bench/cycles
 ENV=$ROOT/data/env/rooftop_small.hdr
 VDB=""; GRID=""; RES=124; W=192; H=192; LADDER=16,64,256,1024; REF=4096; EXTRA=0
 DS=0.25; ALBEDO=0.9; G=0; FOV=40; EYE=""; TARGET=""; UP=""; STEP=0.5; BOUNCES=256
-THREADS=0; QUICK=0; HD=1; MAXB=0.1; MAXCOV=0.02; CYCLES_FROM=""
+THREADS=0; QUICK=0; HD=1; MAXB=0.1; MAXCOV=0.02; CYCLES_FROM=""; HD_SPP=4,16; TIME_SPP=""
 SETTINGS=()
 set_w=0; set_h=0; set_ladder=0; set_ref=0; set_res=0
 while [ $# -gt 0 ]; do
@@ -76,6 +84,8 @@ while [ $# -gt 0 ]; do
     --spp-ladder) LADDER=$v; set_ladder=1 ;;
     --ref-spp) REF=$v; set_ref=1 ;;
     --extra-spp) EXTRA=$v ;;
+    --hd-cycles-spp) HD_SPP=$v ;;
+    --time-spp) TIME_SPP=$v ;;
     --density-scale) DS=$v ;;
     --albedo) ALBEDO=$v ;;
     --g) G=$v ;;
@@ -109,6 +119,12 @@ for n in "$W" "$H" "$REF" "$RES" "$BOUNCES" "$EXTRA" "$THREADS"; do
   [[ $n =~ ^[0-9]+$ ]] || die "'$n' is not a non-negative integer"
 done
 [[ $LADDER =~ ^[0-9]+(,[0-9]+)+$ ]] || die "--spp-ladder '$LADDER' must list at least two sample counts, as 16,64,256"
+if [ -z "$TIME_SPP" ]; then
+  if [ -n "$CYCLES_FROM" ]; then TIME_SPP=16,64,256; else TIME_SPP=none; fi
+fi
+for l in "$HD_SPP" "$TIME_SPP"; do
+  [ "$l" = none ] || [[ $l =~ ^[0-9]+(,[0-9]+)+$ ]] || die "'$l' must be none or list at least two sample counts, as 4,16"
+done
 [ -z "$EYE$TARGET" ] || { [ -n "$EYE" ] && [ -n "$TARGET" ]; } || die "--eye and --target go together"
 
 command -v blender > /dev/null 2>&1 || { echo "$NAME: SKIP: blender is not on PATH"; exit 77; }
@@ -282,6 +298,28 @@ if [ $rc -ne 0 ]; then
 fi
 fi
 
+# 5b. Timing-only Cycles renders (images kept, errors not used): again at WxH when the
+# ladder's renders were reused, and at 1920x1080 for the HD time model.
+# cycles_timing DIR CAMERA.json SPP-LIST
+cycles_timing() {
+  mkdir -p "$1"
+  echo "$NAME: Cycles timing renders $(python3 -c "import json,sys; c=json.load(open(sys.argv[1])); print('%dx%d' % (c['width'], c['height']))" "$2"), $3 spp (log: $OUT/logs/$1.log)"
+  run "$1.log" blend render --vdb "$VDB" ${GRID:+--grid "$GRID"} --sidecar "bake_$first.json" --env "$ENV" \
+    --camera "$2" --spp "$3" --ref-spp 1 --step-rate "$STEP" --bounces "$BOUNCES" --threads "$THREADS" \
+    --out "$OUT/$1" --timings "$1/cycles_timings.json"
+  grep "^$NAME: ladder" "logs/$1.log" || true
+}
+timeopt=()
+if [ "$TIME_SPP" != none ]; then
+  cycles_timing timing camera.json "$TIME_SPP"
+  timeopt+=(--time-runs timing/cycles_timings.json)
+fi
+if [ "$HD" = 1 ] && [ "$HD_SPP" != none ]; then
+  python3 -c "import json,sys; c=json.load(open(sys.argv[1])); c['width'], c['height'] = 1920, 1080; json.dump(c, open(sys.argv[2], 'w'), indent=1)" camera.json camera_hd.json
+  cycles_timing hd camera_hd.json "$HD_SPP"
+  timeopt+=(--hd-time-runs hd/cycles_timings.json)
+fi
+
 # 6. Compare, tables, previews.
 python3 - "${#names[@]}" "${names[@]}" "${opts[@]}" "${bake_s[@]}" "${render_s[@]}" "${render_hd_s[@]}" <<'PY' > manifest.json
 import json, sys
@@ -293,7 +331,7 @@ print(json.dumps({"lpmbake": [
     for n, o, b, r, h in zip(names, opts, bake, rend, hd)]}, indent=1))
 PY
 set +e
-blend compare --manifest manifest.json --timings cycles_timings.json --out "$OUT" \
+blend compare --manifest manifest.json --timings cycles_timings.json --out "$OUT" "${timeopt[@]}" \
   --white-lpm "lpmbake_${first}_white.exr" --black-lpm "lpmbake_$first.exr" \
   --md table.md --side-by-side side_by_side.png > logs/compare.log 2>&1
 rc=$?
