@@ -61,7 +61,11 @@ out_of() { printf '%s/out/lit.%04d.vdb' "$W" "$1"; }
 # temporary file exists and needs the rest of the write to outlast the moment between
 # Slurm's SIGCONT and SIGTERM; uncompressed, the write of these small frames is so short
 # that a resumed bake could finish it first (the content digests do not depend on it).
-BAKE=("$IN" --env "$ENV" -o "$OUT" --compression zip)
+# Full resolution and 6x6 directions a face: the cancel phase freezes frame 2 after 1 s of
+# CPU, and the default bake of that frame now takes 0.7 s (3.4 s with these, frame 3 4.2 s;
+# one thread, 2026-12-02); under a loaded ctest -j2 the default bake ended before it.
+QUALITY=(--multires off --directions-per-face 6)
+BAKE=("$IN" --env "$ENV" -o "$OUT" --compression zip "${QUALITY[@]}")
 # Bounded: Slurm ends a task after 3 minutes, and no --wait lasts longer than 4.
 submit() { timeout 240 "$SUBMIT" --sbatch-arg --time=3 --lpmbake "$LPMBAKE" "$@"; }
 
@@ -143,7 +147,7 @@ end start
 
 # ---------------------------------------------------------------------------------------
 begin local
-"$LPMBAKE" "$IN" --env "$ENV" -o "$W/ref/ref.####.vdb" --frames 1-3 --threads 2 -q ||
+"$LPMBAKE" "$IN" --env "$ENV" -o "$W/ref/ref.####.vdb" "${QUALITY[@]}" --frames 1-3 --threads 2 -q ||
   fail "local reference bake exited $?"
 declare -A ref=()
 for f in 1 2 3; do ref[$f]=$(digest "$(printf '%s/ref/ref.%04d.vdb' "$W" "$f")"); done
@@ -193,7 +197,7 @@ tmp_of() { printf '%s/out/.lit.%04d.lpmtmp-%s.vdb' "$W" "$1" "$2"; }   # lpmbake
 now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
 
 # Two victims, watched together (tasks 2 and 3 run side by side on 2 CPUs):
-#  frame 2 mid-solve: frozen (SIGSTOP) after 1 s of CPU (its bake needs ~4 s), before any file;
+#  frame 2 mid-solve: frozen (SIGSTOP) after 1 s of CPU (its bake needs ~3.4 s), before any file;
 #  frame 3 mid-write: frozen while its temporary file exists (the last ~0.3 s of the bake), so
 #    SIGTERM must remove a real temporary file. Best effort: if the 20 ms polling misses the
 #    write, frame 3 simply completes and only frame 2 counts as cancelled.
