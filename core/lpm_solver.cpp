@@ -20,6 +20,7 @@
 #include "core/lpm_solve.h"
 #include "core/malloc_policy.h"
 #include "core/parallel.h"
+#include "core/scratch_pool.h"
 #include "core/subdivide.h"
 
 namespace lpm {
@@ -365,10 +366,12 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& set
     LpmSettings s = settings;
     if (!s.cache) s.cache = std::make_shared<LpmCache>();
     const SolvePlan plan = planLpm(m, lights, s);
-    if (plan.subdivide > 1) return solveSubdivided(m, lights, s, plan);
-    if (!plan.deltaM) return LpmSolve(m, lights, s, plan, s.cache, nullptr).run();
-    const Medium scaled = deltaMScaled(m, plan.deltaMFraction);
-    return LpmSolve(scaled, lights, s, plan, s.cache, nullptr).run();
+    LpmResult res;
+    if (plan.subdivide > 1) res = solveSubdivided(m, lights, s, plan);
+    else if (!plan.deltaM) res = LpmSolve(m, lights, s, plan, s.cache, nullptr).run();
+    else res = LpmSolve(deltaMScaled(m, plan.deltaMFraction), lights, s, plan, s.cache, nullptr).run();
+    releaseScratchPool();  // the sweeps' ray-row arenas: what runs next (the write) needs the memory
+    return res;
 }
 
 }  // namespace lpm

@@ -24,7 +24,8 @@ namespace lpm {
 void keepFreedBuffersForReuse();
 
 /// Asks the kernel to back the whole 2 MiB pages inside [p, p + bytes) with transparent
-/// huge pages. Best effort: ignored below 4 MiB, where THP is off, or off Linux.
+/// huge pages. Best effort: nothing when no whole 2 MiB page lies inside, where THP is
+/// off, or off Linux.
 void adviseHugePages(void* p, std::size_t bytes);
 
 /// v.assign(n, 0) for a large buffer: when v must grow, its new storage is advised onto

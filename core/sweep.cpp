@@ -29,6 +29,7 @@
 #include "core/sweep.h"
 
 #include "core/malloc_policy.h"
+#include "core/scratch_pool.h"
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(LPM_NO_CLONES)
 // One binary, the best of AVX-512 / AVX2+FMA / SSE2 chosen at load time (GCC ifunc). The
@@ -543,9 +544,8 @@ public:
         // crossings moves only the touched columns; more slack widens every slot).
         slack_ = std::clamp((f_.tnu * K / 4) & ~7, 8, kMaxSlack);
         C_ = f_.tnu * K + slack_;
-        // Uninitialised: a row's slot is written only when the row first meets allocated
-        // voxels, so the rows of empty space cost neither memory traffic nor pages.
-        if (dense_) arena_.reset(new float[rows_count_ * 3 * size_t(C_)]);
+        // The arena (attachArena) is uninitialised: a row's slot is written only when the row
+        // first meets allocated voxels, so the rows of empty space cost no memory traffic.
         block_.assign(rows_count_, nullptr);
         cap_.assign(rows_count_, 0);
         org_.assign(rows_count_, 0);
@@ -579,8 +579,15 @@ public:
     StepSweep(const StepSweep&) = delete;
     StepSweep& operator=(const StepSweep&) = delete;
 
+    // Floats of the dense arena of ray-row slots (0 when sparse).
+    size_t arenaFloats() const { return dense_ ? rows_count_ * 3 * size_t(C_) : 0; }
+    // Storage for arenaFloats() floats, uninitialised (core/scratch_pool.h); before sweeping.
+    void attachArena(float* arena) { arena_ = arena; }
+
     // A sweep with its own planes: every layer gathered, swept and scattered to phi.
     void run(float* phi, Tally& tally) {
+        const ScratchBlock arena(arenaFloats());
+        attachArena(arena.data());
         const float k = float(g_.aPerp) * depositScale_;
         for (int l = 0; l < f_.tna; ++l) {
             const int layer = layerAt(l);
@@ -749,7 +756,7 @@ private:
         if (!p) return;
         vlo_[row] = vhi_[row] = 0;
         if (dense_) {
-            block_[row] = arena_.get() + row * 3 * size_t(C_);
+            block_[row] = arena_ + row * 3 * size_t(C_);
             cap_[row] = C_;
             org_[row] = g_.su > 0 ? -slack_ : 0;  // the slack lies on the side the window moves to
         }
@@ -913,7 +920,7 @@ private:
     static constexpr size_t kSparseBlockRatio = 16;  // dense: at least 1/16 of the block's tiles stored
     bool dense_ = true;
     int C_ = 0;                           // dense: columns of a row's slot, nu rounded up to tiles plus slack
-    std::unique_ptr<float[]> arena_;      // dense: the rows' slots, 3 channels of C_ lanes each, in row order
+    float* arena_ = nullptr;              // dense: the rows' slots, 3 channels of C_ lanes each, in row order
     std::vector<float*> block_;           // per written ray row: its storage (sparse: null until touched)
     std::vector<int> cap_, org_;          // per written ray row: its window holds columns org .. org + cap - 1
     std::vector<int> vlo_, vhi_;          // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
@@ -968,6 +975,16 @@ void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r,
                 weights += j->weight;
             }
         if (sweeps.empty()) continue;
+        // One pooled arena for the batch's sweeps, each slice 64-byte aligned.
+        auto slice = [](size_t floats) { return (floats + 15) / 16 * 16; };
+        size_t arenaFloats = 0;
+        for (const auto& sw : sweeps) arenaFloats += slice(sw->arenaFloats());
+        const ScratchBlock arena(arenaFloats);
+        size_t at = 0;
+        for (auto& sw : sweeps) {
+            sw->attachArena(arena.data() + at);
+            at += slice(sw->arenaFloats());
+        }
         double sca[3] = {0, 0, 0}, src[3] = {0, 0, 0};
         const int layers =
             (std::array<int, 3>{m.nx, m.ny, m.nz}[size_t(first.axis)] + Medium::kTile - 1) / Medium::kTile;
