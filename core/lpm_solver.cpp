@@ -126,7 +126,7 @@ LpmSolve::LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, 
             res_.decisions.push_back(std::to_string(capped) + " voxels thicker than optical depth " +
                                      format("%g", s.linearSourceVoxelCap) + " keep a constant source");
     }
-    assignZeroed(unshot_, perVoxel_ * N_);
+    // unshot_ (the source of passes 1..) is allocated when pass 1 starts: pass 0 needs only next_.
     assignZeroed(next_, perVoxel_ * N_);
     runner_ = std::make_unique<PassRunner>(m, FoldShape{nb_, M_, nc_}, slopeVoxel_, res_.sh);
     if (initialSource_) assignZeroed(res_.sourceSum, N_ * size_t(nb_) * 3);
@@ -247,7 +247,7 @@ bool LpmSolve::iterate() {
         }
         const auto tp = Clock::now();
         std::swap(unshot_, next_);
-        std::fill(next_.begin(), next_.end(), 0.0f);
+        assignZeroed(next_, perVoxel_ * N_);
         addToSourceSum(unshot_);
         Tally t;
         runner_->run(sourceJobs(unshot_), r_, t, true, next_);

@@ -11,6 +11,7 @@
 #include <cstdio>
 
 #include "core/lpm_solve.h"
+#include "core/malloc_policy.h"
 #include "core/multires.h"
 #include "core/parallel.h"
 
@@ -44,43 +45,46 @@ void LpmSolve::continueOnCoarse(int firstPass) {
     LpmSettings cs = coarseSettings(s_, plan_, cache_);
     const SolvePlan coarsePlan = planSolve(summarizeScene(mc, Lights{}, nullptr, true), cs, maxThreads());
     // Two fine source-sized buffers: r (also holds E during the fine pass) takes next's
-    // storage and next the source iteration's `unshot`, no longer needed. The tail (the
-    // coarse sources beyond r) stays on the coarse grid: it is added to r before the fine
-    // pass and taken from next after it, each fine voxel its coarse parent's value (means
-    // only; the tail has no slopes).
+    // storage; the source iteration's `unshot` is freed, and so is next during each coarse
+    // solve (the peak of an anisotropic bake was there: 24 bins x RGB, 288 B per stored
+    // voxel each). The tail (the coarse sources beyond r) stays on the coarse grid: it is
+    // added to r before the fine pass and taken from next after it, each fine voxel its
+    // coarse parent's value (means only; the tail has no slopes).
     std::vector<float> r = std::move(next_);
-    next_ = std::move(unshot_);
     unshot_ = std::vector<float>();
     int cycles = 0, coarsePasses = 0, p = firstPass;
     double rPower = res_.passes.back().scattered;
     bool coarseConverged = true;
     for (; cycles < kCycles && p < s_.maxOrders; ++cycles) {
         runner_->releaseBuffers();  // the coarse solve needs the memory more than the next fine pass its pages
-        const std::vector<float> uc = restrictSource(m_, mc, r, nb_, M_);
-        cs.maxOrders = std::max(1, s_.maxOrders - p);
-        cs.tolerance = std::fabs(rPower) > 0 ? s_.tolerance * res_.injected / std::fabs(rPower) : s_.tolerance;
-        const LpmResult cr = LpmSolve(mc, Lights{}, cs, coarsePlan, cache_, &uc).run();
-        for (size_t i = 1; i < cr.passes.size(); ++i) {
-            PassStats ps = cr.passes[i];
-            ps.pass = p++;
-            ps.coarse = true;
-            res_.passes.push_back(ps);
+        next_ = std::vector<float>();
+        std::vector<float> tailCoarse;  // the coarse sources beyond r
+        {                               // the restricted source and the coarse result are freed before the fine pass
+            const std::vector<float> uc = restrictSource(m_, mc, r, nb_, M_);
+            cs.maxOrders = std::max(1, s_.maxOrders - p);
+            cs.tolerance = std::fabs(rPower) > 0 ? s_.tolerance * res_.injected / std::fabs(rPower) : s_.tolerance;
+            LpmResult cr = LpmSolve(mc, Lights{}, cs, coarsePlan, cache_, &uc).run();
+            for (size_t i = 1; i < cr.passes.size(); ++i) {
+                PassStats ps = cr.passes[i];
+                ps.pass = p++;
+                ps.coarse = true;
+                res_.passes.push_back(ps);
+            }
+            coarsePasses += int(cr.passes.size()) - 1;
+            coarseConverged = coarseConverged && cr.converged;
+            res_.segments += cr.segments;
+            if (cycles == 0)
+                for (const std::string& d : cr.decisions) res_.decisions.push_back("coarse grid: " + d);
+            tailCoarse = std::move(cr.sourceSum);
+            for (size_t i = 0; i < tailCoarse.size(); ++i) tailCoarse[i] -= uc[i];
         }
-        coarsePasses += int(cr.passes.size()) - 1;
-        coarseConverged = coarseConverged && cr.converged;
-        res_.segments += cr.segments;
-        if (cycles == 0)
-            for (const std::string& d : cr.decisions) res_.decisions.push_back("coarse grid: " + d);
-        // tail = coarse sources beyond r.
-        std::vector<float> tailCoarse = cr.sourceSum;
-        for (size_t i = 0; i < tailCoarse.size(); ++i) tailCoarse[i] -= uc[i];
         addCoarse(m_, mc, tailCoarse, nb_, M_, 1.0f, r);  // r now holds E
         const auto tf = Clock::now();
-        std::fill(next_.begin(), next_.end(), 0.0f);
+        assignZeroed(next_, N_ * perVoxel_);
         Tally t;
         runner_->run(sourceJobs(r), r_, t, true, next_);
         recordPass(p++, t, tf);
-        r = next_;
+        std::swap(r, next_);  // r = K E; next's storage (E) is freed before the next coarse solve
         addCoarse(m_, mc, tailCoarse, nb_, M_, -1.0f, r);  // r' = K E - tail
         rPower = sourcePower(r);
         res_.passes.back().scattered = std::fabs(rPower);
