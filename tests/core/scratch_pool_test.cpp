@@ -33,7 +33,9 @@ TEST(ScratchPool, ReturnedBlockIsReusedBestFit) {
 
 TEST(ScratchPool, GrowingReleasesFreeBlocksThatDoNotFit) {
     releaseScratchPool();
-    { ScratchBlock a(4 * kFloatsPerMiB), b(6 * kFloatsPerMiB); }
+    {
+        ScratchBlock a(4 * kFloatsPerMiB), b(6 * kFloatsPerMiB);
+    }
     ScratchBlock big(16 * kFloatsPerMiB);
     EXPECT_EQ(scratchPoolBytes(), 16 * kMiB);  // the 4 and 6 MiB blocks went
     EXPECT_EQ(releaseScratchPool(), 0u);       // the 16 MiB one is in use
