@@ -3,12 +3,11 @@
 
 #include <gtest/gtest.h>
 
-#include <cstdint>
-#include <fstream>
-#include <sstream>
 #include <string>
 
 #include "core/math.h"
+
+#include "smaps.h"
 
 namespace lpm {
 namespace {
@@ -39,28 +38,9 @@ TEST(MallocPolicy, AdviseIgnoresSmallAndNullRanges) {
     EXPECT_EQ(small.size(), 16u);
 }
 
-// The kernel's own view of the mapping that holds p: its smaps "THPeligible" line.
-int thpEligible(const void* p) {
-    std::ifstream smaps("/proc/self/smaps");
-    std::string line;
-    bool inside = false;
-    const auto addr = reinterpret_cast<std::uintptr_t>(p);
-    while (std::getline(smaps, line)) {
-        std::uintptr_t lo = 0, hi = 0;
-        char dash = 0;
-        std::istringstream head(line);
-        if (line.find('-') != std::string::npos && (head >> std::hex >> lo >> dash >> hi) && dash == '-')
-            inside = addr >= lo && addr < hi;
-        else if (inside && line.rfind("THPeligible:", 0) == 0) return std::stoi(line.substr(12));
-    }
-    return -1;
-}
-
 TEST(MallocPolicy, LargeBuffersAreAdvisedOntoHugePages) {
-    std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
-    std::string modes;
-    std::getline(mode, modes);
-    if (modes.empty() || modes.find("[never]") != std::string::npos) GTEST_SKIP() << "THP off: " << modes;
+    const std::string modes = thpModes();
+    if (!thpUsable(modes)) GTEST_SKIP() << "THP off: " << modes;
     std::vector<float> v;
     assignZeroed(v, size_t(16) << 20);  // 64 MiB: its middle lies in whole 2 MiB pages
     EXPECT_EQ(thpEligible(v.data() + v.size() / 2), 1) << "THP mode " << modes;

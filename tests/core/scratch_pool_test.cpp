@@ -5,11 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "smaps.h"
 
 namespace lpm {
 namespace {
@@ -50,28 +50,9 @@ TEST(ScratchPool, BlocksAreWholeHugePagesAndWritable) {
     EXPECT_EQ(a.data()[a.capacity() - 1], float(a.capacity() - 1));
 }
 
-// The kernel's own view of the mapping that holds p: its smaps "THPeligible" line.
-int thpEligible(const void* p) {
-    std::ifstream smaps("/proc/self/smaps");
-    std::string line;
-    bool inside = false;
-    const auto addr = reinterpret_cast<std::uintptr_t>(p);
-    while (std::getline(smaps, line)) {
-        std::uintptr_t lo = 0, hi = 0;
-        char dash = 0;
-        std::istringstream head(line);
-        if (line.find('-') != std::string::npos && (head >> std::hex >> lo >> dash >> hi) && dash == '-')
-            inside = addr >= lo && addr < hi;
-        else if (inside && line.rfind("THPeligible:", 0) == 0) return std::stoi(line.substr(12));
-    }
-    return -1;
-}
-
 TEST(ScratchPool, BlocksAreAdvisedOntoHugePages) {
-    std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
-    std::string modes;
-    std::getline(mode, modes);
-    if (modes.empty() || modes.find("[never]") != std::string::npos) GTEST_SKIP() << "THP off: " << modes;
+    const std::string modes = thpModes();
+    if (!thpUsable(modes)) GTEST_SKIP() << "THP off: " << modes;
     releaseScratchPool();
     ScratchBlock a(3 * kFloatsPerMiB);  // below the old 4 MiB floor of the advice
     EXPECT_EQ(thpEligible(a.data()), 1) << "THP mode " << modes;
