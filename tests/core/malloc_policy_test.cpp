@@ -46,5 +46,18 @@ TEST(MallocPolicy, LargeBuffersAreAdvisedOntoHugePages) {
     EXPECT_EQ(thpEligible(v.data() + v.size() / 2), 1) << "THP mode " << modes;
 }
 
+// The policy also advises the main heap: a block below the mmap threshold (carved from the
+// heap, not mapped on its own) lies in huge-page-eligible memory.
+TEST(MallocPolicy, HeapBlocksAreAdvisedOntoHugePages) {
+    const std::string modes = thpModes();
+    if (!thpUsable(modes)) GTEST_SKIP() << "THP off: " << modes;
+#if defined(__SANITIZE_ADDRESS__)
+    GTEST_SKIP() << "the sanitizer's allocator replaces glibc's heap";
+#endif
+    keepFreedBuffersForReuse();
+    std::vector<float> v(size_t(2) << 20);  // 8 MiB, below the 32 MiB mmap threshold
+    EXPECT_EQ(thpEligible(v.data() + v.size() / 2), 1) << "THP mode " << modes;
+}
+
 }  // namespace
 }  // namespace lpm

@@ -35,8 +35,6 @@ inline std::string thpModes() {
 }
 
 /// Whether advised memory can get huge pages here.
-inline bool thpUsable(const std::string& modes) {
-    return !modes.empty() && modes.find("[never]") == std::string::npos;
-}
+inline bool thpUsable(const std::string& modes) { return !modes.empty() && modes.find("[never]") == std::string::npos; }
 
 }  // namespace lpm
