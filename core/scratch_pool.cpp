@@ -23,7 +23,7 @@ struct Block {
 
 struct Pool {
     std::mutex m;
-    std::vector<Block> free;  // by address order of return; searched for the best fit
+    std::vector<Block> free;  // in order of return; searched for the best fit
     std::size_t bytes = 0;    // in use and free
 };
 
