@@ -16,8 +16,15 @@ namespace lpm {
 
 namespace {
 
-void adviseHeapOntoHugePages() {
+// glibc's own heap (a sanitizer's allocator replaces it) on Linux.
 #if defined(__GLIBC__) && defined(__linux__) && !defined(__SANITIZE_ADDRESS__)
+#define LPM_GLIBC_HEAP 1
+#else
+#define LPM_GLIBC_HEAP 0
+#endif
+
+void adviseHeapOntoHugePages() {
+#if LPM_GLIBC_HEAP
     // Grow the main heap by 192 MiB in blocks below the mmap threshold (each touches only
     // its header page), advise the whole range, and free the blocks: they merge into the
     // heap's top, which stays below the trim threshold, so the allocations that follow
@@ -39,6 +46,8 @@ void adviseHeapOntoHugePages() {
 }
 
 }  // namespace
+
+bool heapAdviceSupported() { return LPM_GLIBC_HEAP != 0; }
 
 void keepFreedBuffersForReuse() {
 #if defined(__GLIBC__)

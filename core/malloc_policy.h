@@ -24,6 +24,10 @@ namespace lpm {
 /// 0.085 -> 0.055 s). Call once, before any thread starts; a no-op outside glibc.
 void keepFreedBuffersForReuse();
 
+/// Whether keepFreedBuffersForReuse advises the heap in this build (glibc on Linux, no
+/// sanitizer allocator).
+bool heapAdviceSupported();
+
 /// Asks the kernel to back the whole 2 MiB pages inside [p, p + bytes) with transparent
 /// huge pages. Best effort: nothing when no whole 2 MiB page lies inside, where THP is
 /// off, or off Linux.
