@@ -63,6 +63,7 @@ std::string flagOf(const std::string& field) {
                                                                 {"subdivide", "--subdivide"},
                                                                 {"multires", "--multires"},
                                                                 {"multiresAfter", "--multires-after"},
+                                                                {"separableSource", "--separable-sources"},
                                                                 {"linearSource", "--source"},
                                                                 {"deltaM", "--delta-m"},
                                                                 {"envHotShare", "--env-hot-share"},

@@ -63,6 +63,7 @@ std::string canonicalSettings(const BakeOptions& o) {
     num("env_hot_share", s.envHotShare);
     num("multires", s.multires);
     num("multires_after", s.multiresAfter);
+    num("separable_source", s.separableSource);
     num("multires_min_voxels", s.multiresMinVoxels);
     num("multires_directions", s.multiresDirections);
     num("subdivide", s.subdivide);
@@ -193,6 +194,7 @@ openvdb::MetaMap bakeMetadata(const BakeOptions& o, const BakeSummary& sum, cons
     i32(subdivide, o.solver.subdivide);
     str(multires, o.solver.multires < 0 ? "auto" : (o.solver.multires ? "on" : "off"));
     i32(multiresAfter, o.solver.multiresAfter);
+    str(separableSources, o.solver.separableSource < 0 ? "auto" : (o.solver.separableSource ? "on" : "off"));
     str(sourceShape, o.solver.linearSource < 0 ? "auto" : (o.solver.linearSource ? "linear" : "constant"));
     str(deltaM, o.solver.deltaM < 0 ? "auto" : (o.solver.deltaM ? "on" : "off"));
     dbl(envHotShare, o.solver.envHotShare);

@@ -195,7 +195,7 @@ struct Args {
     std::vector<std::string> suns, sunIrr;
     std::vector<double> sunAngle;
     bool noKrylov = false;
-    std::string sourceShape = "auto", deltaM = "auto", multires = "auto", sunTerm = "auto";
+    std::string sourceShape = "auto", deltaM = "auto", multires = "auto", separable = "auto", sunTerm = "auto";
     std::string upAxis = "y";
     std::string compression = "none";
     std::string solveScale = "1";
@@ -327,6 +327,12 @@ void addSolverOptions(CLI::App& app, Args& a) {
                    "scattering passes at full resolution before the coarse grid takes over")
         ->default_val(a.b.solver.multiresAfter)
         ->check(CLI::Range(1, 1000))
+        ->group(gS);
+    app.add_option("--separable-sources", a.separable,
+                   "two-grid solve with unshot bins: the fine passes keep each voxel's angular integral and take "
+                   "the angular shape from the coarse grid (about 1/4 of the memory); auto (on), on, off")
+        ->default_val("auto")
+        ->check(CLI::IsMember({"auto", "on", "off"}))
         ->group(gS);
     app.add_option("--source", a.sourceShape,
                    "source inside a voxel: auto (linear when a voxel is thicker than optical depth 2), constant, "
@@ -505,6 +511,7 @@ int runBakeCommand(Args& a, int argc, char** argv, const Log& log) {
     b.solver.linearSource = a.sourceShape == "linear" ? 1 : (a.sourceShape == "constant" ? 0 : -1);
     b.solver.deltaM = a.deltaM == "on" ? 1 : (a.deltaM == "off" ? 0 : -1);
     b.solver.multires = a.multires == "on" ? 1 : (a.multires == "off" ? 0 : -1);
+    b.solver.separableSource = a.separable == "on" ? 1 : (a.separable == "off" ? 0 : -1);
     b.sunTerm = a.sunTerm == "on" ? 1 : (a.sunTerm == "off" ? 0 : -1);
     std::vector<std::string> explicitKnobs;
     for (const std::string& flag : qualityFlags())

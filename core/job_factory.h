@@ -26,6 +26,10 @@ public:
                                const std::vector<Sun>& suns) const;
     /// A propagation pass whose source is `src` ([voxel][bin][moment][rgb], `moments` per bin).
     std::vector<Job> sourceJobs(const std::vector<float>& src, int moments, const RGB& albedo) const;
+    /// A propagation pass of a separable source (core/separable_source.h): the directions
+    /// ordered by unshot bin, all reading `binSource` ([voxel][rgb]), which holds the bin of
+    /// the jobs being swept. jobBin[j] receives job j's bin.
+    std::vector<Job> binJobs(const float* binSource, const RGB& albedo, std::vector<int>& jobBin) const;
 
 private:
     Job sun(const Sun& s) const;

@@ -74,6 +74,7 @@ void LpmSettings::validate() const {
     if (multiresMinVoxels < 0)
         throw SettingError("LPM", "multiresMinVoxels", "must be >= 0, got " + std::to_string(multiresMinVoxels));
     requireAutoOrRange("multiresDirections", multiresDirections, 1, kMaxDirectionsPerFace);
+    requireAutoOrRange("separableSource", separableSource, 0, 1);
     requireRange("subdivide", subdivide, 1, kMaxSubdivide);
 }
 

@@ -46,6 +46,9 @@ struct LpmSettings {
     int multiresMinVoxels = 1 << 16;    ///< auto threshold on stored voxels (2 x 32^3)
     int multiresDirections = -1;        ///< directions per face on the coarse grid: -1 auto (n/2 when the
                                         ///< bins still divide it and it is >= 2, else n)
+    int separableSource = -1;           ///< fine-grid sources of the two-grid solve held separably (each
+                                        ///< voxel's angular integral, its coarse parent's angular shape;
+                                        ///< core/separable_source.h): -1 auto (with unshot bins), 0 off, 1 on
     int subdivide = 1;                  ///< solve on voxels split k x k x k (same medium), average back: for
                                         ///< optically thick voxels, where a voxel-constant source leaks light
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass

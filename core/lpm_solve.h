@@ -14,6 +14,7 @@
 #include "core/lpm_solver.h"
 #include "core/pass_runner.h"
 #include "core/quadrature.h"
+#include "core/separable_source.h"
 #include "core/solve_plan.h"
 
 namespace lpm {
@@ -30,8 +31,22 @@ private:
     using Clock = std::chrono::steady_clock;
     void passZero();
     void startFromSource();
-    bool iterate();                        ///< source iteration; true when GMRES is to take over
-    void continueOnCoarse(int firstPass);  // core/two_grid.cpp
+    bool iterate();  ///< source iteration; true when GMRES is to take over
+    // The two-grid continuation (core/two_grid.cpp).
+    struct TwoGridCount {
+        int coarsePasses = 0;
+        bool converged = true;
+    };
+    void continueOnCoarse(int firstPass);
+    void continueOnCoarseSeparable(int firstPass);
+    std::vector<float> coarseOrders(const Medium& mc, LpmSettings& cs, const SolvePlan& coarsePlan,
+                                    const std::vector<float>& uc, double rPower, int cycle, int& p,
+                                    TwoGridCount& count);
+    void reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count, double rPower,
+                       Clock::time_point start);
+    /// One fine pass with separable sources: of the light jobs (src null) or of `src`; its
+    /// deposits fold into the SH result and sep_->next.
+    void runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs = nullptr);
     void finishWithGmres();
     void clampNegativeLinear();
     void addToSourceSum(const std::vector<float>& src);
@@ -56,6 +71,16 @@ private:
     std::vector<std::uint8_t> slopeVoxel_;
     std::unique_ptr<PassRunner> runner_;
     std::vector<float> unshot_, next_;  ///< [voxel][bin][moment][rgb]
+    /// Separable fine sources (plan.separableSource): in place of unshot_ and next_.
+    struct SeparableState {
+        Medium coarse;  ///< the two-grid solve's coarse medium
+        FineCoarseMap map;
+        std::vector<double> binWeight;
+        SeparableSource unshot, next;
+        std::vector<float> binSource;  ///< [voxel][rgb]: the source of the bin being swept
+        explicit SeparableState(const Medium& fine);
+    };
+    std::unique_ptr<SeparableState> sep_;
     int pass_ = 1;
     bool continuedOnCoarse_ = false;
 };

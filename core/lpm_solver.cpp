@@ -127,7 +127,12 @@ LpmSolve::LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, 
                                      format("%g", s.linearSourceVoxelCap) + " keep a constant source");
     }
     // unshot_ (the source of passes 1..) is allocated when pass 1 starts: pass 0 needs only next_.
-    assignZeroed(next_, perVoxel_ * N_);
+    if (plan.separableSource) {
+        sep_ = std::make_unique<SeparableState>(m);
+        for (int d = 0; d < nb_; ++d) sep_->binWeight.push_back(ff_->binWeight(d));
+    } else {
+        assignZeroed(next_, perVoxel_ * N_);
+    }
     runner_ = std::make_unique<PassRunner>(m, FoldShape{nb_, M_, nc_}, slopeVoxel_, res_.sh);
     if (initialSource_) assignZeroed(res_.sourceSum, N_ * size_t(nb_) * 3);
 }
@@ -201,7 +206,8 @@ void LpmSolve::passZero() {
     }
     const std::vector<Job> jobs = jobs_.lightJobs(m_, envBin, plan_.environmentPass || plan_.emissionPass, suns);
     Tally t;
-    runner_->run(jobs, r_, t, true, next_);
+    if (sep_) runSeparablePass(nullptr, t, &jobs);
+    else runner_->run(jobs, r_, t, true, next_);
     res_.injected = Tally::mean(t.injected);
     if (s_.sunTerms) {
         const auto ts = Clock::now();
@@ -231,7 +237,7 @@ bool LpmSolve::iterate() {
             continueOnCoarse(pass_);
             return false;
         }
-        if (plan_.krylov && pass_ >= 4 && ratio > 0.8 && ratio < 1.0) {
+        if (plan_.krylov && !sep_ && pass_ >= 4 && ratio > 0.8 && ratio < 1.0) {
             // Passes j until the stop test above holds: last ratio^j rho/(1-rho) <= tol injected.
             const double more =
                 std::log(s_.tolerance * res_.injected / (last * (ratio / (1.0 - ratio)))) / std::log(ratio);
@@ -246,11 +252,16 @@ bool LpmSolve::iterate() {
             }
         }
         const auto tp = Clock::now();
-        std::swap(unshot_, next_);
-        assignZeroed(next_, perVoxel_ * N_);
-        addToSourceSum(unshot_);
         Tally t;
-        runner_->run(sourceJobs(unshot_), r_, t, true, next_);
+        if (sep_) {
+            sep_->unshot = std::move(sep_->next);
+            runSeparablePass(&sep_->unshot, t);
+        } else {
+            std::swap(unshot_, next_);
+            assignZeroed(next_, perVoxel_ * N_);
+            addToSourceSum(unshot_);
+            runner_->run(sourceJobs(unshot_), r_, t, true, next_);
+        }
         recordPass(pass_, t, tp);
     }
 }

@@ -128,21 +128,14 @@ bool PassRunner::isotropic(const std::vector<Job>& jobs) const {
     return true;
 }
 
-// Sweeps in parallel (one buffer per job), then folds the batch in job order, in parallel
-// over voxels. Thread-count independent by construction (and batch-size independent: each
-// voxel's sums take the jobs in job order either way). Batches of 8: plume-1M at g = 0.6
-// peaked at 1663 MiB with 16, 1522 MiB with 8 or 4, in the same time within this
-// machine's noise (docs/performance.md).
-void PassRunner::runGeneral(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh,
-                            std::vector<float>& out) const {
+void PassRunner::sweepInBatches(const std::vector<Job>& jobs, const std::vector<size_t>& starts, int r, Tally& total,
+                                const std::function<void(size_t)>& before, const BatchFold& fold) const {
     const size_t N = m_.voxelCount();
     const int M = shape_.moments;
-    const size_t batchMem = size_t(512) << 20;
-    const size_t maxBatch = std::max<size_t>(1, batchMem / std::max<size_t>(1, N * 3 * M * sizeof(float)));
-    const size_t batch = std::min(jobs.size(), std::min<size_t>(maxBatch, 8));
-    if (buffers_.size() < batch) buffers_.resize(batch);
-    for (size_t b0 = 0; b0 < jobs.size(); b0 += batch) {
-        const size_t nbatch = std::min(batch, jobs.size() - b0);
+    for (size_t b = 0; b < starts.size(); ++b) {
+        const size_t b0 = starts[b], nbatch = (b + 1 < starts.size() ? starts[b + 1] : jobs.size()) - b0;
+        if (buffers_.size() < nbatch) buffers_.resize(nbatch);
+        if (before) before(b);
         std::vector<Tally> tallies(nbatch);
         parallelForChunks(nbatch, 1, [&](size_t jb, size_t je) {
             for (size_t j = jb; j < je; ++j) {
@@ -152,8 +145,27 @@ void PassRunner::runGeneral(const std::vector<Job>& jobs, int r, Tally& total, b
             }
         });
         for (size_t j = 0; j < nbatch; ++j) total.add(tallies[j]);
-        foldDeposits(shape_, depositSh, &jobs[b0], nbatch, buffers_, slopeVoxel_, sh_, out);
+        fold(&jobs[b0], nbatch, buffers_);
     }
+}
+
+// Sweeps in parallel (one buffer per job), then folds the batch in job order, in parallel
+// over voxels. Thread-count independent by construction (and batch-size independent: each
+// voxel's sums take the jobs in job order either way). Batches of 8: plume-1M at g = 0.6
+// peaked at 1663 MiB with 16, 1522 MiB with 8 or 4, in the same time within this
+// machine's noise (docs/performance.md).
+void PassRunner::runGeneral(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh,
+                            std::vector<float>& out) const {
+    const size_t N = m_.voxelCount();
+    const size_t batchMem = size_t(512) << 20;
+    const size_t maxBatch = std::max<size_t>(1, batchMem / std::max<size_t>(1, N * 3 * shape_.moments * sizeof(float)));
+    const size_t batch = std::min(jobs.size(), std::min<size_t>(maxBatch, 8));
+    std::vector<size_t> starts;
+    for (size_t b0 = 0; b0 < jobs.size(); b0 += batch) starts.push_back(b0);
+    sweepInBatches(jobs, starts, r, total, {},
+                   [&](const Job* js, size_t n, const std::vector<std::vector<float>>& phi) {
+                       foldDeposits(shape_, depositSh, js, n, phi, slopeVoxel_, sh_, out);
+                   });
 }
 
 // Isotropic bins, SH order 0 and a voxel-constant source: every job folds as one scalar

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "core/medium.h"
@@ -35,6 +36,14 @@ public:
 
     /// Frees the deposit buffers kept from pass to pass (before a phase that needs the memory).
     void releaseBuffers() const;
+
+    /// Folds one batch's deposits phi[j] ([voxel][moment][rgb]) of jobs[0..n).
+    using BatchFold = std::function<void(const Job* jobs, size_t n, const std::vector<std::vector<float>>& phi)>;
+    /// Sweeps `jobs` in batches (batch b: jobs [starts[b], starts[b + 1]), the last to the
+    /// end), one deposit buffer per job, in parallel; then `fold` takes the batch. `before(b)`
+    /// (may be empty) runs before batch b is swept. Adds the tallies to `total`.
+    void sweepInBatches(const std::vector<Job>& jobs, const std::vector<size_t>& starts, int r, Tally& total,
+                        const std::function<void(size_t)>& before, const BatchFold& fold) const;
 
 private:
     /// Deposit buffer i (a batch's accumulator or a direction's deposit), `len` zeros. The

@@ -146,6 +146,30 @@ void planLights(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan
         plan.decisions.push_back({"sun pass", std::to_string(scene.suns) + " sun(s) swept in their exact direction"});
 }
 
+/// Separable fine sources (core/separable_source.h, docs/multires.md): with unshot bins and
+/// the two-grid solve, the fine passes hold each voxel's angular integral and take the
+/// angular shape from its coarse parent, instead of 12 B per bin and voxel twice over.
+void planSeparableSource(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
+    if (scene.continuation || plan.binsPerFace == 0 || s.separableSource == 0) return;
+    std::string whyNot;
+    if (plan.coarseFrom == 0) whyNot = "no two-grid solve";
+    else if (plan.linearSource) whyNot = "the linear source keeps slopes per voxel and bin";
+    else if (plan.coarseFrom > 4)
+        whyNot = "more than 3 fine passes before the coarse grid (GMRES may run on the fine grid)";
+    if (!whyNot.empty()) {
+        if (s.separableSource == 1) plan.decisions.push_back({"full fine sources (separable requested)", whyNot});
+        return;
+    }
+    plan.separableSource = true;
+    const int nb = 6 * plan.binsPerFace * plan.binsPerFace;
+    plan.decisions.push_back(
+        {"separable fine sources",
+         format("%.0f unshot bins: each fine voxel keeps its angular integral, its coarse parent the angular shape "
+                "(%.0f B per voxel and buffer instead of %.0f)",
+                nb, 12.0, 12.0 * nb) +
+             (s.separableSource == 1 ? " (requested)" : "")});
+}
+
 /// The resolution schedule of the scattering orders: which run on the 2x coarser grid
 /// (docs/multires.md), with how many directions and rays.
 void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
@@ -164,6 +188,7 @@ void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& 
                                                           : std::to_string(scene.storedVoxels) + " stored voxels < " +
                                                                 std::to_string(s.multiresMinVoxels)});
     }
+    planSeparableSource(scene, s, plan);
     const int n = s.directionsPerFace, half = n / 2, b = plan.binsPerFace;
     plan.coarseDirectionsPerFace =
         s.multiresDirections > 0 ? s.multiresDirections : (half >= 2 && (b == 0 || half % b == 0) ? half : n);
@@ -204,8 +229,11 @@ void planCost(const SceneSummary& scene, const LpmSettings& s, int threads, Solv
     const double perSlice = segmentsPerSlice(n);
     plan.predictedSegmentsPerFinePass = nd * double(plan.raysHigher * plan.raysHigher) * N * perSlice;
     plan.predictedSecondsPerFinePass = plan.predictedSegmentsPerFinePass / rate;
-    const double unshotBytes = 2 * N * nb * M * 3 * sizeof(float);
-    const double foldBytes = (isotropicFold ? 6.0 : 16.0) * N * 3 * M * sizeof(float);
+    const double unshotBytes =
+        plan.separableSource ? 2 * N * (1 + nb / 8.0) * 3 * sizeof(float) : 2 * N * nb * M * 3 * sizeof(float);
+    // Deposit buffers: the isotropic fold's batches, 8 directions of the general fold (and
+    // what it streams), or 4 and the bin's source with separable sources.
+    const double foldBytes = (isotropicFold ? 6.0 : (plan.separableSource ? 5.0 : 16.0)) * N * 3 * M * sizeof(float);
     const double shBytes = N * nc * 3 * sizeof(float);
     plan.predictedBytes = unshotBytes + foldBytes + shBytes + N * sizeof(float) * (scene.emission ? 4 : 1);
     const double lightSweeps =
@@ -213,7 +241,8 @@ void planCost(const SceneSummary& scene, const LpmSettings& s, int threads, Solv
     for (PlanDecision& d : plan.decisions) {
         if (d.what == "environment pass" || d.what == "emission pass" || d.what == "sun pass")
             d.predictedSeconds = lightSweeps * double(plan.raysSingle * plan.raysSingle) * N * perSlice / rate;
-        if (d.what.find("unshot bin") != std::string::npos) d.predictedBytes = unshotBytes + foldBytes;
+        if (d.what.find("unshot bin") != std::string::npos || d.what == "separable fine sources")
+            d.predictedBytes = unshotBytes + foldBytes;
         if (d.what == "multi-resolution" || d.what == "full resolution for every order")
             d.predictedSeconds = plan.predictedSecondsPerFinePass;
     }

@@ -14,6 +14,7 @@
 #include "core/malloc_policy.h"
 #include "core/multires.h"
 #include "core/parallel.h"
+#include "core/separable_source.h"
 
 namespace lpm {
 
@@ -38,7 +39,50 @@ LpmSettings coarseSettings(const LpmSettings& s, const SolvePlan& plan, const st
 
 }  // namespace
 
+// Iterates the orders of the restricted source `uc` on the coarse grid (passes numbered
+// from p on); returns the sources it propagated beyond uc (the tail).
+std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, const SolvePlan& coarsePlan,
+                                          const std::vector<float>& uc, double rPower, int cycle, int& p,
+                                          TwoGridCount& count) {
+    cs.maxOrders = std::max(1, s_.maxOrders - p);
+    cs.tolerance = std::fabs(rPower) > 0 ? s_.tolerance * res_.injected / std::fabs(rPower) : s_.tolerance;
+    LpmResult cr = LpmSolve(mc, Lights{}, cs, coarsePlan, cache_, &uc).run();
+    for (size_t i = 1; i < cr.passes.size(); ++i) {
+        PassStats ps = cr.passes[i];
+        ps.pass = p++;
+        ps.coarse = true;
+        res_.passes.push_back(ps);
+    }
+    count.coarsePasses += int(cr.passes.size()) - 1;
+    count.converged = count.converged && cr.converged;
+    res_.segments += cr.segments;
+    if (cycle == 0)
+        for (const std::string& d : cr.decisions) res_.decisions.push_back("coarse grid: " + d);
+    std::vector<float> tail = std::move(cr.sourceSum);
+    for (size_t i = 0; i < tail.size(); ++i) tail[i] -= uc[i];
+    return tail;
+}
+
+void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
+                             double rPower, Clock::time_point start) {
+    res_.converged = count.converged && std::fabs(rPower) <= s_.tolerance * res_.injected;
+    char buf[300];
+    std::snprintf(buf, sizeof buf,
+                  "two-grid: coarse grid %dx%dx%d with %d directions per face, %d cycle(s) of coarse orders and "
+                  "one fine pass, %d coarse passes; source left %.3g of the input",
+                  mc.nx, mc.ny, mc.nz, cs.directionsPerFace, cycles, count.coarsePasses,
+                  res_.injected > 0 ? std::fabs(rPower) / res_.injected : 0.0);
+    if (s_.progress)
+        s_.progress("two-grid: " + std::to_string(std::chrono::duration<double>(Clock::now() - start).count()) + " s");
+    res_.decisions.push_back(buf);
+    continuedOnCoarse_ = true;
+}
+
 void LpmSolve::continueOnCoarse(int firstPass) {
+    if (sep_) {
+        continueOnCoarseSeparable(firstPass);
+        return;
+    }
     constexpr int kCycles = 3;
     const auto tp = Clock::now();
     const Medium mc = coarsen(m_);
@@ -52,32 +96,15 @@ void LpmSolve::continueOnCoarse(int firstPass) {
     // coarse parent's value (means only; the tail has no slopes).
     std::vector<float> r = std::move(next_);
     unshot_ = std::vector<float>();
-    int cycles = 0, coarsePasses = 0, p = firstPass;
+    int cycles = 0, p = firstPass;
+    TwoGridCount count;
     double rPower = res_.passes.back().scattered;
-    bool coarseConverged = true;
     for (; cycles < kCycles && p < s_.maxOrders; ++cycles) {
         runner_->releaseBuffers();  // the coarse solve needs the memory more than the next fine pass its pages
         next_ = std::vector<float>();
-        std::vector<float> tailCoarse;  // the coarse sources beyond r
-        {                               // the restricted source and the coarse result are freed before the fine pass
-            const std::vector<float> uc = restrictSource(m_, mc, r, nb_, M_);
-            cs.maxOrders = std::max(1, s_.maxOrders - p);
-            cs.tolerance = std::fabs(rPower) > 0 ? s_.tolerance * res_.injected / std::fabs(rPower) : s_.tolerance;
-            LpmResult cr = LpmSolve(mc, Lights{}, cs, coarsePlan, cache_, &uc).run();
-            for (size_t i = 1; i < cr.passes.size(); ++i) {
-                PassStats ps = cr.passes[i];
-                ps.pass = p++;
-                ps.coarse = true;
-                res_.passes.push_back(ps);
-            }
-            coarsePasses += int(cr.passes.size()) - 1;
-            coarseConverged = coarseConverged && cr.converged;
-            res_.segments += cr.segments;
-            if (cycles == 0)
-                for (const std::string& d : cr.decisions) res_.decisions.push_back("coarse grid: " + d);
-            tailCoarse = std::move(cr.sourceSum);
-            for (size_t i = 0; i < tailCoarse.size(); ++i) tailCoarse[i] -= uc[i];
-        }
+        // The restricted source and the coarse result are freed before the fine pass.
+        const std::vector<float> tailCoarse =
+            coarseOrders(mc, cs, coarsePlan, restrictSource(m_, mc, r, nb_, M_), rPower, cycles, p, count);
         addCoarse(m_, mc, tailCoarse, nb_, M_, 1.0f, r);  // r now holds E
         const auto tf = Clock::now();
         assignZeroed(next_, N_ * perVoxel_);
@@ -93,17 +120,42 @@ void LpmSolve::continueOnCoarse(int firstPass) {
             break;
         }
     }
-    res_.converged = coarseConverged && std::fabs(rPower) <= s_.tolerance * res_.injected;
-    char buf[300];
-    std::snprintf(buf, sizeof buf,
-                  "two-grid: coarse grid %dx%dx%d with %d directions per face, %d cycle(s) of coarse orders and "
-                  "one fine pass, %d coarse passes; source left %.3g of the input",
-                  mc.nx, mc.ny, mc.nz, cs.directionsPerFace, cycles, coarsePasses,
-                  res_.injected > 0 ? std::fabs(rPower) / res_.injected : 0.0);
-    if (s_.progress)
-        s_.progress("two-grid: " + std::to_string(std::chrono::duration<double>(Clock::now() - tp).count()) + " s");
-    res_.decisions.push_back(buf);
-    continuedOnCoarse_ = true;
+    reportTwoGrid(mc, cs, cycles, count, rPower, tp);
+}
+
+// The same cycle with separable fine sources (core/separable_source.h): r, E and K E are
+// held separably, so no fine buffer of bins is ever allocated; the tail is the separable
+// form's coarse offset.
+void LpmSolve::continueOnCoarseSeparable(int firstPass) {
+    constexpr int kCycles = 3;
+    const auto tp = Clock::now();
+    const Medium& mc = sep_->coarse;
+    LpmSettings cs = coarseSettings(s_, plan_, cache_);
+    const SolvePlan coarsePlan = planSolve(summarizeScene(mc, Lights{}, nullptr, true), cs, maxThreads());
+    SeparableSource r = std::move(sep_->next);
+    sep_->unshot = SeparableSource();
+    int cycles = 0, p = firstPass;
+    TwoGridCount count;
+    double rPower = res_.passes.back().scattered;
+    for (; cycles < kCycles && p < s_.maxOrders; ++cycles) {
+        runner_->releaseBuffers();
+        const std::vector<float> tailCoarse =
+            coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count);
+        r.addToOffset(tailCoarse, 1.0f);  // r now holds E
+        const auto tf = Clock::now();
+        Tally t;
+        runSeparablePass(&r, t);
+        recordPass(p++, t, tf);
+        r = std::move(sep_->next);         // K E
+        r.addToOffset(tailCoarse, -1.0f);  // r' = K E - tail
+        rPower = r.power(sep_->map, sep_->binWeight, m_.albedo, V_);
+        res_.passes.back().scattered = std::fabs(rPower);
+        if (std::fabs(rPower) <= s_.tolerance * res_.injected) {
+            ++cycles;
+            break;
+        }
+    }
+    reportTwoGrid(mc, cs, cycles, count, rPower, tp);
 }
 
 }  // namespace lpm

@@ -80,6 +80,7 @@ const std::vector<MetaKey>& bakeSchema() {
                                              subdivide,
                                              multires,
                                              multiresAfter,
+                                             separableSources,
                                              sourceShape,
                                              deltaM,
                                              envHotShare,

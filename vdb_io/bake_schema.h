@@ -91,6 +91,7 @@ inline const MetaKey maxOrders{"lpm:max_orders", MetaType::Int, true, false, ""}
 inline const MetaKey subdivide{"lpm:subdivide", MetaType::Int, true, false, ""};
 inline const MetaKey multires{"lpm:multires", MetaType::String, true, false, "auto, on or off"};
 inline const MetaKey multiresAfter{"lpm:multires_after", MetaType::Int, true, false, ""};
+inline const MetaKey separableSources{"lpm:separable_sources", MetaType::String, true, false, "auto, on or off"};
 inline const MetaKey sourceShape{"lpm:source_shape", MetaType::String, true, false, "auto, linear, constant"};
 inline const MetaKey deltaM{"lpm:delta_m", MetaType::String, true, false, "auto, on or off"};
 inline const MetaKey envHotShare{"lpm:env_hot_share", MetaType::Double, true, false, ""};

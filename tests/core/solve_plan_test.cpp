@@ -142,6 +142,40 @@ TEST(SolvePlan, LargeBlocksIterateHigherOrdersOnTheCoarseGrid) {
     EXPECT_FALSE(coarse.environmentPass);
 }
 
+// Separable fine sources: with unshot bins (g != 0) and the two-grid solve, not with one
+// isotropic bin, at full resolution or with the linear source; asked for where they
+// cannot run, the plan says why.
+TEST(SolvePlan, SeparableFineSourcesWithBinsOnTheTwoGridSolve) {
+    SceneSummary sc = smallScene();
+    sc.dims[0] = sc.dims[1] = sc.dims[2] = 64;
+    sc.storedVoxels = 64 * 64 * 64;
+    sc.g = 0.6;
+    const SolvePlan aniso = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_TRUE(aniso.separableSource);
+    EXPECT_TRUE(says(aniso, "separable fine sources: 24 unshot bins"));
+    LpmSettings off;
+    off.separableSource = 0;
+    const SolvePlan full = planSolve(sc, off, 2);
+    EXPECT_FALSE(full.separableSource);
+    EXPECT_LT(aniso.predictedBytes, 0.5 * full.predictedBytes);
+    sc.g = 0.0;
+    EXPECT_FALSE(planSolve(sc, LpmSettings{}, 2).separableSource);  // one isotropic bin
+    SceneSummary small = smallScene();
+    small.g = 0.6;
+    EXPECT_FALSE(planSolve(small, LpmSettings{}, 2).separableSource);  // full resolution
+    LpmSettings asked;
+    asked.separableSource = 1;
+    const SolvePlan askedSmall = planSolve(small, asked, 2);
+    EXPECT_FALSE(askedSmall.separableSource);
+    EXPECT_TRUE(says(askedSmall, "full fine sources (separable requested): no two-grid solve"));
+    sc.g = 0.6;
+    sc.maxVoxelTau = 5;  // linear source
+    const SolvePlan thick = planSolve(sc, asked, 2);
+    EXPECT_TRUE(thick.linearSource);
+    EXPECT_FALSE(thick.separableSource);
+    EXPECT_TRUE(says(thick, "the linear source keeps slopes"));
+}
+
 TEST(SolvePlan, PredictedCostScalesWithVoxelsRaysAndThreads) {
     SceneSummary sc = smallScene();
     LpmSettings fullRes;  // at 2x the voxels the block would reach the two-grid threshold

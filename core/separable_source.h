@@ -1,0 +1,76 @@
+// Separable fine-grid sources of the two-grid solve (docs/multires.md, "Separable fine
+// sources"). An anisotropic unshot source U_f(d) (fine voxel f, unshot bin d, RGB) held in
+// full costs bins x 12 B per voxel (24 bins: 288 B), the largest buffer of an anisotropic
+// bake. Held separably, each fine voxel keeps only its angular integral per channel and
+// its coarse parent C the angular shape:
+//     m_f = sum_d w_d U_f(d)                                   [fine voxel][rgb]
+//     R_C(d) = sum_f sigma_f U_f(d) / sum_f sigma_f             [coarse voxel][bin][rgb]
+//     U_f(d) ~= m_f R_C(d) / |R_C| + P_C(d),   |R_C| = sum_d w_d R_C(d)
+// P_C is a piecewise-constant part (the two-grid cycle's coarse tail). Exact: every fine
+// voxel's angular integral, and the sigma-weighted restriction (so the source power of
+// every coarse voxel in every bin). Approximate: how the angular shape varies among the
+// 8 children of a coarse voxel.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/medium.h"
+
+namespace lpm {
+
+struct Job;
+
+/// Fine voxels and their coarse parents (the coarse medium of core/multires.h: voxels
+/// twice as large, fine voxel (x, y, z) the child of coarse voxel (x/2, y/2, z/2)).
+struct FineCoarseMap {
+    static constexpr std::uint32_t kNone = ~std::uint32_t(0);
+    std::vector<std::uint32_t> parent;    ///< [fine voxel] its coarse voxel, kNone outside the block
+    std::vector<std::uint32_t> children;  ///< [coarse voxel][8] its fine voxels, kNone where absent
+    std::vector<float> sigmaSum;          ///< [coarse voxel] sum of its children's sigma_t
+    FineCoarseMap(const Medium& fine, const Medium& coarse);
+};
+
+/// A fine-grid source held separably (see the file comment).
+struct SeparableSource {
+    int bins = 0;
+    std::vector<float> magnitude;  ///< m_f [fine voxel][rgb]
+    std::vector<float> shape;      ///< R_C [coarse voxel][bin][rgb]
+    std::vector<float> invNorm;    ///< 1 / |R_C| [coarse voxel][rgb], 0 where |R_C| = 0
+    std::vector<float> offset;     ///< P_C [coarse voxel][bin][rgb]; empty: 0
+
+    /// The source restricted to the coarse grid, R_C + P_C [coarse voxel][bin][rgb] (what
+    /// restrictSource gives for the full source).
+    std::vector<float> restricted() const;
+    /// P_C += scale * coarse ([coarse voxel][bin][rgb]).
+    void addToOffset(const std::vector<float>& coarse, float scale);
+    /// out [fine voxel][rgb] = U_f(bin), 0 for voxels outside the block.
+    void fillBin(const FineCoarseMap& map, int bin, float* out) const;
+    /// Source power sum_f sigma_s U_f(d) w_d V, mean over RGB (as LpmSolve::sourcePower).
+    double power(const FineCoarseMap& map, const std::vector<double>& binWeight, const RGB& albedo,
+                 double fineVoxelVolume) const;
+};
+
+/// Folds a pass's per-direction deposits into the SH result and a separable next source:
+/// the fold of core/pass_runner.cpp with a voxel's bin row reduced, as it is formed, to
+/// its angular integral and its parent's sigma-weighted sum. Parallel over coarse voxels,
+/// each taking its children in a fixed order: sums do not depend on the thread count.
+class SeparableFold {
+public:
+    SeparableFold(const FineCoarseMap& map, const std::vector<float>& sigmaT, const std::vector<double>& binWeight,
+                  int shCoeffs);
+    /// Deposits phi[j] [fine voxel][rgb] of jobs[0..n), in job order.
+    void fold(bool depositSh, const Job* jobs, size_t n, const std::vector<std::vector<float>>& phi,
+              std::vector<float>& sh);
+    /// The folded source (R_C normalised by the children's sigma sums). Leaves the fold empty.
+    SeparableSource finish();
+
+private:
+    const FineCoarseMap& map_;
+    const std::vector<float>& sigmaT_;
+    std::vector<float> binWeight_;
+    int nb_, nc_;
+    SeparableSource out_;  ///< shape holds sum_f sigma_f U_f(d) until finish()
+};
+
+}  // namespace lpm
