@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/fold_kernel.h"
 #include "core/malloc_policy.h"
 #include "core/parallel.h"
 
@@ -37,27 +38,6 @@ std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>& jobs, 
 }
 
 namespace {
-
-/// An RGB triple repeated 8 times: 24 floats = 3 channels x 8 lanes.
-struct RgbRepeat {
-    float v[24];
-    explicit RgbRepeat(const float* p) {
-        for (int k = 0; k < 24; k += 3) {
-            v[k] = p[0];
-            v[k + 1] = p[1];
-            v[k + 2] = p[2];
-        }
-    }
-};
-
-/// dst[i] += coef[i] * p[i % 3] for i < 3 count: coefficients repeated per channel times an
-/// RGB triple, written so that it vectorises.
-inline void addTimesRgb(float* __restrict dst, const float* __restrict coef, const RgbRepeat& p, int count) {
-    int i = 0;
-    for (; i + 24 <= 3 * count; i += 24)
-        for (int k = 0; k < 24; ++k) dst[i + k] += coef[i + k] * p.v[k];
-    for (; i < 3 * count; ++i) dst[i] += coef[i] * p.v[i % 3];
-}
 
 /// Folds the deposits phi[j] ([voxel][moment][rgb]) of jobs[0..n) into the SH result
 /// ([voxel][coeff][rgb], when depositSh) and the next unshot source `out`

@@ -3,8 +3,10 @@
 
 #include <algorithm>
 
+#include "core/fold_kernel.h"
 #include "core/malloc_policy.h"
 #include "core/parallel.h"
+#include "core/simd_clones.h"
 #include "core/sweep.h"
 
 namespace lpm {
@@ -14,6 +16,7 @@ FineCoarseMap::FineCoarseMap(const Medium& f, const Medium& c) {
     std::fill(parent.begin(), parent.end(), kNone);
     children.assign(c.voxelCount() * 8, kNone);
     assignZeroed(sigmaSum, c.voxelCount());
+    groupSize = f.sparse() ? Medium::kTileVoxels : 2 * size_t(f.nx) * size_t(f.ny);
     parallelForChunks(size_t(c.nz), 1, [&](size_t zb, size_t ze) {
         for (int z = int(zb); z < int(ze); ++z)
             for (int y = 0; y < c.ny; ++y)
@@ -57,8 +60,8 @@ void SeparableSource::fillBin(const FineCoarseMap& map, int bin, float* out) con
                     continue;
                 }
                 const size_t i = (p * nb + size_t(bin)) * 3 + size_t(c);
-                out[v * 3 + c] = magnitude[v * 3 + c] * shape[i] * invNorm[p * 3 + size_t(c)] +
-                                 (offset.empty() ? 0.0f : offset[i]);
+                out[v * 3 + c] =
+                    magnitude[v * 3 + c] * shape[i] * invNorm[p * 3 + size_t(c)] + (offset.empty() ? 0.0f : offset[i]);
             }
         }
     });
@@ -85,48 +88,86 @@ SeparableFold::SeparableFold(const FineCoarseMap& map, const std::vector<float>&
     assignZeroed(out_.shape, map.sigmaSum.size() * size_t(nb_) * 3);
 }
 
-// As foldDeposits (core/pass_runner.cpp) with M = 1, each child's bin row formed in a local
-// row and reduced at once.
+namespace {
+
+/// One batch's fold coefficients, each repeated for the 3 channels (addTimesRgb's layout).
+struct BatchCoefs {
+    size_t n = 0;
+    int nb = 0, nc = 0;
+    std::vector<float> bin3;  ///< [job][bin][rgb]
+    std::vector<float> sh3;   ///< [job][coeff][rgb]
+    std::vector<float> mag;   ///< [job]: sum_d w_d binCoef_d, the job's share of a voxel's angular integral
+};
+
+/// Fine voxels [vb, ve) of a batch's fold, in storage order: each deposit goes to the
+/// voxel's SH and, times the job's `mag`, to its angular integral; sigma_f times it to its
+/// parent's psi_j. A fine voxel's bin row is never formed: the coarse voxel's restriction
+/// sum_f sigma_f U_f(d) is sum_j binCoef_j(d) psi_j (foldCoarseRange), one bin row per
+/// coarse voxel and job instead of one per fine voxel.
+LPM_SIMD_CLONES
+void foldFineRange(size_t vb, size_t ve, const BatchCoefs& k, const FineCoarseMap& map, const float* sigmaT,
+                   const std::vector<std::vector<float>>& phi, bool depositSh, float* sh, float* mag, float* psi) {
+    for (size_t f = vb; f < ve; ++f) {
+        const std::uint32_t parent = map.parent[f];
+        if (parent == FineCoarseMap::kNone) continue;
+        const float sigma = sigmaT[f];
+        float* m = &mag[f * 3];
+        float* q = &psi[size_t(parent) * k.n * 3];
+        for (size_t j = 0; j < k.n; ++j) {
+            const float* p = &phi[j][f * 3];
+            if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
+            if (depositSh) addTimesRgb(&sh[f * size_t(k.nc) * 3], &k.sh3[j * size_t(k.nc) * 3], RgbRepeat(p), k.nc);
+            for (int c = 0; c < 3; ++c) {
+                m[c] += k.mag[j] * p[c];
+                q[j * 3 + size_t(c)] += sigma * p[c];
+            }
+        }
+    }
+}
+
+/// Coarse voxels [cb, ce): acc(d) += sum_j binCoef_j(d) psi_j, and psi back to 0.
+LPM_SIMD_CLONES
+void foldCoarseRange(size_t cb, size_t ce, const BatchCoefs& k, float* acc, float* psi) {
+    for (size_t ci = cb; ci < ce; ++ci) {
+        float* a = &acc[ci * size_t(k.nb) * 3];
+        for (size_t j = 0; j < k.n; ++j) {
+            float* q = &psi[(ci * k.n + j) * 3];
+            if (q[0] == 0 && q[1] == 0 && q[2] == 0) continue;
+            addTimesRgb(a, &k.bin3[j * size_t(k.nb) * 3], RgbRepeat(q), k.nb);
+            q[0] = q[1] = q[2] = 0.0f;
+        }
+    }
+}
+
+}  // namespace
+
 void SeparableFold::fold(bool depositSh, const Job* jobs, size_t n, const std::vector<std::vector<float>>& phi,
                          std::vector<float>& sh) {
-    const int nb = nb_, nc = nc_;
-    std::vector<float> binC(n * size_t(nb)), shC(n * size_t(nc));
+    BatchCoefs k;
+    k.n = n;
+    k.nb = nb_;
+    k.nc = nc_;
+    k.bin3.resize(n * size_t(nb_) * 3);
+    k.sh3.resize(n * size_t(nc_) * 3);
+    k.mag.assign(n, 0.0f);
     for (size_t j = 0; j < n; ++j) {
-        for (int d = 0; d < nb; ++d) binC[j * size_t(nb) + size_t(d)] = float(jobs[j].binCoef[size_t(d)]);
-        for (int k = 0; k < nc; ++k) shC[j * size_t(nc) + size_t(k)] = float(jobs[j].shCoef[size_t(k)]);
+        for (int c = 0; c < 3; ++c) {
+            for (int d = 0; d < nb_; ++d)
+                k.bin3[(j * size_t(nb_) + size_t(d)) * 3 + size_t(c)] = float(jobs[j].binCoef[size_t(d)]);
+            for (int s = 0; s < nc_; ++s)
+                k.sh3[(j * size_t(nc_) + size_t(s)) * 3 + size_t(c)] = float(jobs[j].shCoef[size_t(s)]);
+        }
+        double m = 0;
+        for (int d = 0; d < nb_; ++d) m += double(binWeight_[size_t(d)]) * jobs[j].binCoef[size_t(d)];
+        k.mag[j] = float(m);
     }
-    const size_t coarseCount = map_.sigmaSum.size();
-    parallelForChunks(coarseCount, 512, [&](size_t cb, size_t ce) {
-        std::vector<float> row(size_t(nb) * 3);
-        for (size_t ci = cb; ci < ce; ++ci)
-            for (int k = 0; k < 8; ++k) {
-                const std::uint32_t f = map_.children[ci * 8 + size_t(k)];
-                if (f == FineCoarseMap::kNone) continue;
-                std::fill(row.begin(), row.end(), 0.0f);
-                bool any = false;
-                for (size_t j = 0; j < n; ++j) {
-                    const float* p = &phi[j][size_t(f) * 3];
-                    if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
-                    any = true;
-                    if (depositSh)
-                        for (int s = 0; s < nc; ++s)
-                            for (int c = 0; c < 3; ++c) sh[(size_t(f) * nc + size_t(s)) * 3 + size_t(c)] += shC[j * size_t(nc) + size_t(s)] * p[c];
-                    const float* cj = &binC[j * size_t(nb)];
-                    for (int d = 0; d < nb; ++d)
-                        for (int c = 0; c < 3; ++c) row[size_t(d) * 3 + size_t(c)] += cj[d] * p[c];
-                }
-                if (!any) continue;
-                const float sigma = sigmaT_[f];
-                float* mag = &out_.magnitude[size_t(f) * 3];
-                float* acc = &out_.shape[ci * size_t(nb) * 3];
-                for (int d = 0; d < nb; ++d)
-                    for (int c = 0; c < 3; ++c) {
-                        const float u = row[size_t(d) * 3 + size_t(c)];
-                        mag[c] += binWeight_[size_t(d)] * u;
-                        acc[size_t(d) * 3 + size_t(c)] += sigma * u;
-                    }
-            }
+    if (psi_.size() < map_.sigmaSum.size() * n * 3) assignZeroed(psi_, map_.sigmaSum.size() * n * 3);
+    // Chunks of whole groups: no two write the same parent's psi.
+    parallelForChunks(map_.parent.size(), map_.groupSize, [&](size_t vb, size_t ve) {
+        foldFineRange(vb, ve, k, map_, sigmaT_.data(), phi, depositSh, sh.data(), out_.magnitude.data(), psi_.data());
     });
+    parallelForChunks(map_.sigmaSum.size(), 4096,
+                      [&](size_t cb, size_t ce) { foldCoarseRange(cb, ce, k, out_.shape.data(), psi_.data()); });
 }
 
 SeparableSource SeparableFold::finish() {

@@ -28,6 +28,9 @@ struct FineCoarseMap {
     std::vector<std::uint32_t> parent;    ///< [fine voxel] its coarse voxel, kNone outside the block
     std::vector<std::uint32_t> children;  ///< [coarse voxel][8] its fine voxels, kNone where absent
     std::vector<float> sigmaSum;          ///< [coarse voxel] sum of its children's sigma_t
+    /// Fine voxels [k groupSize, (k + 1) groupSize) have parents no other group has: a fine
+    /// tile when the fine medium is sparse, else two z-slices.
+    size_t groupSize = 1;
     FineCoarseMap(const Medium& fine, const Medium& coarse);
 };
 
@@ -70,7 +73,8 @@ private:
     const std::vector<float>& sigmaT_;
     std::vector<float> binWeight_;
     int nb_, nc_;
-    SeparableSource out_;  ///< shape holds sum_f sigma_f U_f(d) until finish()
+    SeparableSource out_;     ///< shape holds sum_f sigma_f U_f(d) until finish()
+    std::vector<float> psi_;  ///< [coarse voxel][job][rgb]: a batch's sum_f sigma_f phi_j(f), 0 between batches
 };
 
 }  // namespace lpm

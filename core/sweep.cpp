@@ -30,14 +30,7 @@
 
 #include "core/malloc_policy.h"
 #include "core/scratch_pool.h"
-
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(LPM_NO_CLONES)
-// One binary, the best of AVX-512 / AVX2+FMA / SSE2 chosen at load time (GCC ifunc). The
-// x86-64 levels, not "avx2" alone: that target has no FMA.
-#define LPM_SIMD_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#else
-#define LPM_SIMD_CLONES
-#endif
+#include "core/simd_clones.h"
 
 namespace lpm {
 

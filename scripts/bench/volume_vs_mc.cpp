@@ -10,7 +10,8 @@
 // keeps the fine directions), r2-higher (2 rays per voxel in every pass, the default before
 // raysHigherOrders), r1-all (1 ray per voxel in every pass, single scattering too), k8
 // (GMRES when plain iteration would need more than 8 more passes), previous (the default
-// before raysHigherOrders and the coarse grid's earlier GMRES).
+// before raysHigherOrders and the coarse grid's earlier GMRES), full-sources (the two-grid
+// solve's fine sources held in full, bins per voxel, not separably).
 #include <sys/resource.h>
 
 #include <cstdio>
@@ -53,6 +54,7 @@ LpmSettings settingsNamed(const std::string& name) {
     else if (name == "r1-all") s.raysPerVoxel = 1;
     else if (name == "k8") s.krylovAfter = 8;
     else if (name == "previous") s.raysHigherOrders = 2, s.coarseKrylovAfter = 25;  // session 6's default
+    else if (name == "full-sources") s.separableSource = 0;
     else if (name != "default") {
         std::fprintf(stderr, "unknown setting '%s'\n", name.c_str());
         std::exit(2);

@@ -159,8 +159,7 @@ TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
         if (map.parent[v] == FineCoarseMap::kNone) continue;
         const float a = float(rng.uniform());
         for (int d = 0; d < bins; ++d)
-            for (int ch = 0; ch < 3; ++ch)
-                U[(v * bins + d) * 3 + ch] = a * shapeC[(map.parent[v] * bins + d) * 3 + ch];
+            for (int ch = 0; ch < 3; ++ch) U[(v * bins + d) * 3 + ch] = a * shapeC[(map.parent[v] * bins + d) * 3 + ch];
     }
     // Fold U through one job per bin with unit deposits scaled by U: binCoef = one-hot.
     FoldInput in(f, 0, 1);

@@ -1,0 +1,29 @@
+// The inner loop of the folds (core/pass_runner.cpp, core/separable_source.cpp): a
+// direction's deposit (an RGB triple) times its per-coefficient fold coefficients, added to
+// a voxel's row, written so that it vectorises.
+#pragma once
+
+namespace lpm {
+
+/// An RGB triple repeated 8 times: 24 floats = 3 channels x 8 lanes.
+struct RgbRepeat {
+    float v[24];
+    explicit RgbRepeat(const float* p) {
+        for (int k = 0; k < 24; k += 3) {
+            v[k] = p[0];
+            v[k + 1] = p[1];
+            v[k + 2] = p[2];
+        }
+    }
+};
+
+/// dst[i] += coef[i] * p[i % 3] for i < 3 count: coefficients repeated per channel times an
+/// RGB triple, written so that it vectorises.
+inline void addTimesRgb(float* __restrict dst, const float* __restrict coef, const RgbRepeat& p, int count) {
+    int i = 0;
+    for (; i + 24 <= 3 * count; i += 24)
+        for (int k = 0; k < 24; ++k) dst[i + k] += coef[i + k] * p.v[k];
+    for (; i < 3 * count; ++i) dst[i] += coef[i] * p.v[i % 3];
+}
+
+}  // namespace lpm
