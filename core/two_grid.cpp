@@ -138,7 +138,8 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
     TwoGridCount count;
     double rPower = res_.passes.back().scattered;
     for (; cycles < kCycles && p < s_.maxOrders; ++cycles) {
-        runner_->releaseBuffers();
+        runner_->releaseBuffers();  // and the bin source: the coarse solve is the peak
+        sep_->binSource = std::vector<float>();
         const std::vector<float> tailCoarse =
             coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count);
         r.addToOffset(tailCoarse, 1.0f);  // r now holds E
