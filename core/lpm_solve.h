@@ -22,9 +22,10 @@ namespace lpm {
 class LpmSolve {
 public:
     /// `initialSource`: null for the external-light problem; for the coarse continuation of
-    /// a two-grid solve, the restricted unshot [voxel][bin][rgb] that replaces pass 0.
+    /// a two-grid solve, the restricted unshot [voxel][bin][rgb] that replaces pass 0 (taken
+    /// over: with a voxel-constant source it becomes the first source without a copy).
     LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, const SolvePlan& plan,
-             std::shared_ptr<LpmCache> cache, const std::vector<float>* initialSource);
+             std::shared_ptr<LpmCache> cache, std::vector<float>* initialSource);
     LpmResult run();
 
 private:
@@ -40,8 +41,7 @@ private:
     void continueOnCoarse(int firstPass);
     void continueOnCoarseSeparable(int firstPass);
     std::vector<float> coarseOrders(const Medium& mc, LpmSettings& cs, const SolvePlan& coarsePlan,
-                                    const std::vector<float>& uc, double rPower, int cycle, int& p,
-                                    TwoGridCount& count);
+                                    std::vector<float> uc, double rPower, int cycle, int& p, TwoGridCount& count);
     void reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count, double rPower,
                        Clock::time_point start);
     /// One fine pass with separable sources: of the light jobs (src null) or of `src`; its
@@ -59,7 +59,7 @@ private:
     const LpmSettings& s_;
     const SolvePlan& plan_;
     std::shared_ptr<LpmCache> cache_;
-    const std::vector<float>* initialSource_;
+    std::vector<float>* initialSource_;
     LpmResult res_;
     size_t N_;
     double V_;

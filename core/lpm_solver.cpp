@@ -95,7 +95,7 @@ LpmResult solveSubdivided(const Medium& m, const Lights& lights, const LpmSettin
 }  // namespace
 
 LpmSolve::LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, const SolvePlan& plan,
-                   std::shared_ptr<LpmCache> cache, const std::vector<float>* initialSource)
+                   std::shared_ptr<LpmCache> cache, std::vector<float>* initialSource)
     : m_(m), lights_(lights), s_(s), plan_(plan), cache_(std::move(cache)), initialSource_(initialSource),
       N_(m.voxelCount()), V_(m.voxelVolume()), M_(plan.linearSource ? 4 : 1), nb_(0), nc_(shCount(plan.shOrder)),
       r_(plan.raysSingle), perVoxel_(0), quad_(s.directionsPerFace),
@@ -130,8 +130,8 @@ LpmSolve::LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, 
     if (plan.separableSource) {
         sep_ = std::make_unique<SeparableState>(m);
         for (int d = 0; d < nb_; ++d) sep_->binWeight.push_back(ff_->binWeight(d));
-    } else {
-        assignZeroed(next_, perVoxel_ * N_);
+    } else if (!initialSource_ || M_ != 1) {
+        assignZeroed(next_, perVoxel_ * N_);  // else the initial source becomes next_ (startFromSource)
     }
     runner_ = std::make_unique<PassRunner>(m, FoldShape{nb_, M_, nc_}, slopeVoxel_, res_.sh);
     if (initialSource_) assignZeroed(res_.sourceSum, N_ * size_t(nb_) * 3);
@@ -179,16 +179,18 @@ void LpmSolve::addToSourceSum(const std::vector<float>& src) {
     });
 }
 
-// The restricted source of a coarse continuation replaces pass 0.
+// The restricted source of a coarse continuation replaces pass 0. It is not part of the
+// source sum (the two-grid cycle wants what it gives rise to beyond itself).
 void LpmSolve::startFromSource() {
     double power = 0;
     for (size_t x = 0; x < N_; ++x)
         for (int d = 0; d < nb_; ++d)
             for (int c = 0; c < 3; ++c) {
                 const float u = (*initialSource_)[(x * nb_ + d) * 3 + c];
-                next_[(x * nb_ + d) * M_ * 3 + c] = u;
+                if (M_ != 1) next_[(x * nb_ + d) * M_ * 3 + c] = u;
                 power += double(u) * m_.sigmaT[x] * m_.albedo[c] * ff_->binWeight(d) * V_;
             }
+    if (M_ == 1) next_ = std::move(*initialSource_);
     res_.injected = power / 3.0;
     PassStats ps;
     ps.injected = ps.scattered = res_.injected;
@@ -259,7 +261,7 @@ bool LpmSolve::iterate() {
         } else {
             std::swap(unshot_, next_);
             assignZeroed(next_, perVoxel_ * N_);
-            addToSourceSum(unshot_);
+            if (pass_ > 1 || !initialSource_) addToSourceSum(unshot_);  // not the initial source
             runner_->run(sourceJobs(unshot_), r_, t, true, next_);
         }
         recordPass(pass_, t, tp);
@@ -350,7 +352,8 @@ LpmResult LpmSolve::run() {
     r_ = plan_.raysHigher;
     const bool gmres = iterate();
     if (gmres) finishWithGmres();
-    else if (!continuedOnCoarse_) addToSourceSum(next_);  // the remainder that was not propagated
+    else if (!continuedOnCoarse_ && (pass_ > 1 || !initialSource_))
+        addToSourceSum(next_);  // the remainder that was not propagated (unless it is the initial source)
     if (plan_.linearSource) clampNegativeLinear();
     res_.unshot = res_.passes.back().scattered;
     res_.residual = res_.injected > 0 ? res_.unshot / res_.injected : 0.0;

@@ -50,7 +50,7 @@ struct LpmResult {
     /// hot pixels), with its transmittance; res.sh includes their single scattering.
     std::vector<SunTerm> sunTerms;
     /// Coarse continuation only (internal to multi-resolution): every source the passes
-    /// propagated, plus the unshot remainder, [voxel][bin][rgb].
+    /// propagated beyond the initial one, plus the unshot remainder, [voxel][bin][rgb].
     std::vector<float> sourceSum;
 
     RGB coeff(size_t voxel, int k) const {

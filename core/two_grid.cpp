@@ -39,10 +39,10 @@ LpmSettings coarseSettings(const LpmSettings& s, const SolvePlan& plan, const st
 
 }  // namespace
 
-// Iterates the orders of the restricted source `uc` on the coarse grid (passes numbered
-// from p on); returns the sources it propagated beyond uc (the tail).
+// Iterates the orders of the restricted source `uc` (taken over) on the coarse grid
+// (passes numbered from p on); returns the sources it propagated beyond uc (the tail).
 std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, const SolvePlan& coarsePlan,
-                                          const std::vector<float>& uc, double rPower, int cycle, int& p,
+                                          std::vector<float> uc, double rPower, int cycle, int& p,
                                           TwoGridCount& count) {
     cs.maxOrders = std::max(1, s_.maxOrders - p);
     cs.tolerance = std::fabs(rPower) > 0 ? s_.tolerance * res_.injected / std::fabs(rPower) : s_.tolerance;
@@ -58,9 +58,7 @@ std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, con
     res_.segments += cr.segments;
     if (cycle == 0)
         for (const std::string& d : cr.decisions) res_.decisions.push_back("coarse grid: " + d);
-    std::vector<float> tail = std::move(cr.sourceSum);
-    for (size_t i = 0; i < tail.size(); ++i) tail[i] -= uc[i];
-    return tail;
+    return std::move(cr.sourceSum);
 }
 
 void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
@@ -68,9 +66,9 @@ void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles
     res_.converged = count.converged && std::fabs(rPower) <= s_.tolerance * res_.injected;
     char buf[300];
     std::snprintf(buf, sizeof buf,
-                  "two-grid: coarse grid %dx%dx%d with %d directions per face, %d cycle(s) of coarse orders and "
-                  "one fine pass, %d coarse passes; source left %.3g of the input",
-                  mc.nx, mc.ny, mc.nz, cs.directionsPerFace, cycles, count.coarsePasses,
+                  "two-grid: coarse grid %dx%dx%d (%zu stored voxels) with %d directions per face, %d cycle(s) of "
+                  "coarse orders and one fine pass, %d coarse passes; source left %.3g of the input",
+                  mc.nx, mc.ny, mc.nz, mc.voxelCount(), cs.directionsPerFace, cycles, count.coarsePasses,
                   res_.injected > 0 ? std::fabs(rPower) / res_.injected : 0.0);
     if (s_.progress)
         s_.progress("two-grid: " + std::to_string(std::chrono::duration<double>(Clock::now() - start).count()) + " s");
