@@ -2,6 +2,7 @@
 #include "core/separable_source.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "core/fold_kernel.h"
 #include "core/malloc_policy.h"
@@ -59,9 +60,9 @@ void SeparableSource::fillBin(const FineCoarseMap& map, int bin, float* out) con
                     out[v * 3 + c] = 0.0f;
                     continue;
                 }
-                const size_t i = (p * nb + size_t(bin)) * 3 + size_t(c);
-                out[v * 3 + c] =
-                    magnitude[v * 3 + c] * shape[i] * invNorm[p * 3 + size_t(c)] + (offset.empty() ? 0.0f : offset[i]);
+                const size_t i = (p * nb + size_t(bin)) * 3 + size_t(c), pc = size_t(p) * 3 + size_t(c);
+                const float s = invAbs[pc] > 0 ? std::fabs(shape[i]) * invAbs[pc] : invWeight;
+                out[v * 3 + c] = shape[i] + (magnitude[v * 3 + c] - norm[pc]) * s + (offset.empty() ? 0.0f : offset[i]);
             }
         }
     });
@@ -172,16 +173,24 @@ void SeparableFold::fold(bool depositSh, const Job* jobs, size_t n, const std::v
 
 SeparableSource SeparableFold::finish() {
     const size_t nb = size_t(nb_);
-    assignZeroed(out_.invNorm, map_.sigmaSum.size() * 3);
+    assignZeroed(out_.norm, map_.sigmaSum.size() * 3);
+    assignZeroed(out_.invAbs, map_.sigmaSum.size() * 3);
+    double weightSum = 0;
+    for (float w : binWeight_) weightSum += w;
+    out_.invWeight = float(1.0 / weightSum);
     parallelForChunks(map_.sigmaSum.size(), 4096, [&](size_t cb, size_t ce) {
         for (size_t ci = cb; ci < ce; ++ci) {
             const float s = map_.sigmaSum[ci];
             float* r = &out_.shape[ci * nb * 3];
             for (size_t i = 0; i < nb * 3; ++i) r[i] = s > 0 ? r[i] / s : 0.0f;
             for (int c = 0; c < 3; ++c) {
-                double norm = 0;
-                for (size_t d = 0; d < nb; ++d) norm += double(binWeight_[d]) * r[d * 3 + size_t(c)];
-                out_.invNorm[ci * 3 + size_t(c)] = norm > 0 ? float(1.0 / norm) : 0.0f;
+                double norm = 0, abs = 0;
+                for (size_t d = 0; d < nb; ++d) {
+                    norm += double(binWeight_[d]) * r[d * 3 + size_t(c)];
+                    abs += double(binWeight_[d]) * std::fabs(r[d * 3 + size_t(c)]);
+                }
+                out_.norm[ci * 3 + size_t(c)] = float(norm);
+                out_.invAbs[ci * 3 + size_t(c)] = abs > 0 ? float(1.0 / abs) : 0.0f;
             }
         }
     });

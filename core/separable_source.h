@@ -5,7 +5,11 @@
 // its coarse parent C the angular shape:
 //     m_f = sum_d w_d U_f(d)                                   [fine voxel][rgb]
 //     R_C(d) = sum_f sigma_f U_f(d) / sum_f sigma_f             [coarse voxel][bin][rgb]
-//     U_f(d) ~= m_f R_C(d) / |R_C| + P_C(d),   |R_C| = sum_d w_d R_C(d)
+//     U_f(d) ~= R_C(d) + (m_f - |R_C|) S_C(d) + P_C(d),   |R_C| = sum_d w_d R_C(d)
+// with S_C(d) = |R_C(d)| / sum_d w_d |R_C(d)| the parent's angular shape (isotropic where
+// R_C = 0): where R_C has one sign in every bin this is m_f R_C(d) / |R_C|, and it stays
+// linear in m_f where it has not (the two-grid cycle's residuals change sign; a division
+// by |R_C| there lost their sources and stalled the cycle at albedo 0.99).
 // P_C is a piecewise-constant part (the two-grid cycle's coarse tail). Exact: every fine
 // voxel's angular integral, and the sigma-weighted restriction (so the source power of
 // every coarse voxel in every bin). Approximate: how the angular shape varies among the
@@ -39,7 +43,9 @@ struct SeparableSource {
     int bins = 0;
     std::vector<float> magnitude;  ///< m_f [fine voxel][rgb]
     std::vector<float> shape;      ///< R_C [coarse voxel][bin][rgb]
-    std::vector<float> invNorm;    ///< 1 / |R_C| [coarse voxel][rgb], 0 where |R_C| = 0
+    std::vector<float> norm;       ///< |R_C| [coarse voxel][rgb] (signed)
+    std::vector<float> invAbs;     ///< 1 / sum_d w_d |R_C(d)| [coarse voxel][rgb], 0 where R_C = 0
+    float invWeight = 0;           ///< 1 / sum_d w_d: the isotropic shape
     std::vector<float> offset;     ///< P_C [coarse voxel][bin][rgb]; empty: 0
 
     /// The source restricted to the coarse grid, R_C + P_C [coarse voxel][bin][rgb] (what
