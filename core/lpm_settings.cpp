@@ -63,6 +63,7 @@ void LpmSettings::validate() const {
     requireAtLeast("krylovAfter", krylovAfter, 0);
     requireAtLeast("coarseKrylovAfter", coarseKrylovAfter, 0);
     requireAtLeast("krylovRestart", krylovRestart, 1);
+    requirePositive("krylovBytes", krylovBytes);
     requireAutoOrRange("linearSource", linearSource, 0, 1);
     requirePositive("linearSourceAbove", linearSourceAbove);
     requirePositive("linearSourceVoxelCap", linearSourceVoxelCap);

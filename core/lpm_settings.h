@@ -2,6 +2,7 @@
 // (-1) turns into for a given scene is decided by the effect planner (core/solve_plan.h).
 #pragma once
 
+#include <cstddef>
 #include <functional>
 #include <memory>
 #include <string>
@@ -16,24 +17,27 @@ constexpr int kMaxRaysPerVoxel = 16;
 constexpr int kMaxSubdivide = 8;
 
 struct LpmSettings {
-    int directionsPerFace = 4;       ///< n: n x n propagation directions per cube face (6 n^2 in all)
-    int raysPerVoxel = 2;            ///< ray-map rays per voxel along each lateral axis (r^2 per voxel face)
-    int raysHigherOrders = -1;       ///< rays per voxel of the passes after the first (multiple scattering):
-                                     ///< -1 auto (1 when the two-grid solve runs, else raysPerVoxel), or 1..16
-    int binsPerFace = -1;            ///< unshot bins: -1 auto (1 isotropic bin when g == 0, else 2x2 per face
-                                     ///< when n is even, n x n for n = 1 or 3, else 1 per face); must divide n;
-                                     ///< 0 = one isotropic bin, b = b x b per face
-    int shOrder = 2;                 ///< SH order of the result, 0..3 (forced to 0 when g == 0)
-    double tolerance = 1e-3;         ///< stop when the estimated scattered power still to come / injected < tolerance
-    int maxOrders = 1000;            ///< hard cap on propagation passes
-    bool krylov = true;              ///< allow GMRES acceleration when source iteration would be slow
-    int krylovAfter = 25;            ///< switch when plain iteration would need more than this many passes
-    int coarseKrylovAfter = 8;       ///< the same on the multi-resolution coarse grid (its passes are cheap)
-    int krylovRestart = 40;          ///< GMRES restart length (capped by a 2 GiB budget for Krylov vectors)
-    int linearSource = -1;           ///< -1 auto (on when a voxel is optically thicker than
-                                     ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
-                                     ///< inside each voxel (linear characteristics; 4x the unshot memory)
-    double linearSourceAbove = 2.0;  ///< auto threshold: largest per-voxel optical depth
+    int directionsPerFace = 4;  ///< n: n x n propagation directions per cube face (6 n^2 in all)
+    int raysPerVoxel = 2;       ///< ray-map rays per voxel along each lateral axis (r^2 per voxel face)
+    int raysHigherOrders = -1;  ///< rays per voxel of the passes after the first (multiple scattering):
+                                ///< -1 auto (1 when the two-grid solve runs, else raysPerVoxel), or 1..16
+    int binsPerFace = -1;       ///< unshot bins: -1 auto (1 isotropic bin when g == 0, else 2x2 per face
+                                ///< when n is even, n x n for n = 1 or 3, else 1 per face); must divide n;
+                                ///< 0 = one isotropic bin, b = b x b per face
+    int shOrder = 2;            ///< SH order of the result, 0..3 (forced to 0 when g == 0)
+    double tolerance = 1e-3;    ///< stop when the estimated scattered power still to come / injected < tolerance
+    int maxOrders = 1000;       ///< hard cap on propagation passes
+    bool krylov = true;         ///< allow GMRES acceleration when source iteration would be slow
+    int krylovAfter = 25;       ///< switch when plain iteration would need more than this many passes
+    int coarseKrylovAfter = 8;  ///< the same on the multi-resolution coarse grid (its passes are cheap)
+    int krylovRestart = 40;     ///< GMRES restart length (capped by krylovBytes, at least 4)
+    double krylovBytes = double(std::size_t(2) << 30);  ///< memory GMRES's Krylov vectors may take (the
+                                                        ///< two-grid solve gives its coarse grid 128 B
+                                                        ///< per fine stored voxel)
+    int linearSource = -1;                              ///< -1 auto (on when a voxel is optically thicker than
+                            ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
+                            ///< inside each voxel (linear characteristics; 4x the unshot memory)
+    double linearSourceAbove = 2.0;     ///< auto threshold: largest per-voxel optical depth
     double linearSourceVoxelCap = 8.0;  ///< voxels optically thicker than this keep a constant source
     int deltaM = -1;                    ///< forward-peak truncation (delta-M, f = g^4): -1 auto (on when
                                         ///< g > deltaMAbove and the albedo is grey), 0 off, 1 on (g > 0, grey albedo)

@@ -293,7 +293,7 @@ void LpmSolve::finishWithGmres() {
     };
     // Krylov vectors are the big memory cost: cap their number by the memory budget.
     const size_t vecBytes = len * sizeof(float);
-    const int restart = int(std::clamp<size_t>((size_t(2) << 30) / std::max<size_t>(1, vecBytes), 4,
+    const int restart = int(std::clamp<size_t>(size_t(s_.krylovBytes / double(std::max<size_t>(1, vecBytes))), 4,
                                                size_t(std::max(4, s_.krylovRestart))));
     const double bNorm = std::sqrt(weightedDot(binW, B, B));
     std::vector<float> X;
