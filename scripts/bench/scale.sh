@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Time and memory against the active voxels (docs/performance.md): default bakes of
-# procedural volumes generated here (no large files in the repo), each a separate process
+# procedural volumes generated here (no large files in the repo; two at g = 0.6, SH order 2,
+# one of them a thick cumulus at albedo 0.99 where GMRES runs), each a separate process
 # so peak RSS is its own.
 #   scripts/bench/scale.sh [--quick] [--large] [--mantaflow] [--threads N] [--original PATH-TO-AN-OLDER-lpmbake]
 # --large adds the 8M cloud and the 50M-active-voxel cloud in a 1024^3 box (about 10
@@ -31,6 +32,8 @@ env=data/env/rooftop_small.hdr
 # name | generator arguments | bake arguments
 scenes=(
   "plume-1M|plume --res 124|--albedo 0.9 --density-scale 0.25"
+  "plume-1M-g0.6|plume --res 124|--albedo 0.9 --density-scale 0.25 --g 0.6"
+  "cumulus-1M-g0.6-a0.99|cloud --res 160|--albedo 0.99 --density-scale 0.6 --g 0.6"
   "puff-1|puffs --res 512 --count 1|--albedo 0.9"
   "puffs-2-in-512^3|puffs --res 512 --count 2|--albedo 0.9"
 )
