@@ -11,31 +11,6 @@
 using namespace lpm;
 using namespace lpm::test;
 
-namespace {
-
-// An odd-sized sparse block (whole tiles missing) with random extinction.
-Medium sparseBlock(std::uint64_t seed) {
-    Medium probe;
-    probe.nx = 27;
-    probe.ny = 19;
-    probe.nz = 22;
-    std::vector<std::uint8_t> active(size_t(probe.tilesX()) * probe.tilesY() * probe.tilesZ());
-    for (size_t t = 0; t < active.size(); ++t) active[t] = t % 4 != 2;
-    Medium m;
-    m.allocate(probe.nx, probe.ny, probe.nz, &active);
-    m.voxelSize = {0.5, 0.7, 0.6};
-    Pcg32 rng(seed, 1);
-    for (int z = 0; z < m.nz; ++z)
-        for (int y = 0; y < m.ny; ++y)
-            for (int x = 0; x < m.nx; ++x) {
-                const size_t i = m.index(x, y, z);
-                if (i != Medium::npos) m.sigmaT[i] = rng.uniform() < 0.3 ? 0.0f : float(3 * rng.uniform());
-            }
-    return m;
-}
-
-}  // namespace
-
 TEST(Multires, CoarseningKeepsOpticalMass) {
     const Medium f = sparseBlock(3);
     const Medium c = coarsen(f);

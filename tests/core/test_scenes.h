@@ -127,6 +127,28 @@ inline Medium makeBox(int nx, int ny, int nz, double sigma, double h = 1.0) {
 }
 
 /// A sky: blue-ish gradient above, dark ground below, a warm broad hot spot.
+/// An odd-sized sparse block (a quarter of its tiles missing) with random extinction,
+/// about 30% of the voxels empty, anisotropic voxels: the multi-resolution transfer's test block.
+inline Medium sparseBlock(std::uint64_t seed) {
+    Medium probe;
+    probe.nx = 27;
+    probe.ny = 19;
+    probe.nz = 22;
+    std::vector<std::uint8_t> active(size_t(probe.tilesX()) * probe.tilesY() * probe.tilesZ());
+    for (size_t t = 0; t < active.size(); ++t) active[t] = t % 4 != 2;
+    Medium m;
+    m.allocate(probe.nx, probe.ny, probe.nz, &active);
+    m.voxelSize = {0.5, 0.7, 0.6};
+    Pcg32 rng(seed, 1);
+    for (int z = 0; z < m.nz; ++z)
+        for (int y = 0; y < m.ny; ++y)
+            for (int x = 0; x < m.nx; ++x) {
+                const size_t i = m.index(x, y, z);
+                if (i != Medium::npos) m.sigmaT[i] = rng.uniform() < 0.3 ? 0.0f : float(3 * rng.uniform());
+            }
+    return m;
+}
+
 inline EnvMap makeSky(int width = 128) {
     const int height = width / 2;
     std::vector<RGB> px(size_t(width) * height);
