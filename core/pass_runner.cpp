@@ -108,6 +108,26 @@ bool PassRunner::isotropic(const std::vector<Job>& jobs) const {
     return true;
 }
 
+std::vector<std::pair<size_t, size_t>> sweepGroups(const Job* jobs, size_t n, int threads) {
+    std::vector<std::pair<size_t, size_t>> groups;  // [begin, end)
+    for (size_t j = 0; j < n; ++j)
+        if (groups.empty() || !samePlanes(jobs[j], jobs[groups.back().first]) ||
+            jobs[j].sign != jobs[groups.back().first].sign)
+            groups.push_back({j, j + 1});
+        else groups.back().second = j + 1;
+    while (groups.size() < size_t(std::max(1, threads))) {
+        auto largest = std::max_element(groups.begin(), groups.end(), [](const auto& a, const auto& b) {
+            return a.second - a.first < b.second - b.first;
+        });
+        if (largest == groups.end() || largest->second - largest->first < 2) break;
+        const size_t mid = largest->first + (largest->second - largest->first + 1) / 2;
+        const size_t end = largest->second;
+        largest->second = mid;
+        groups.insert(largest + 1, {mid, end});
+    }
+    return groups;
+}
+
 void PassRunner::sweepInBatches(const std::vector<Job>& jobs, const std::vector<size_t>& starts, int r, Tally& total,
                                 const std::function<void(size_t)>& before, const BatchFold& fold) const {
     const size_t N = m_.voxelCount();
@@ -117,11 +137,26 @@ void PassRunner::sweepInBatches(const std::vector<Job>& jobs, const std::vector<
         if (buffers_.size() < nbatch) buffers_.resize(nbatch);
         if (before) before(b);
         std::vector<Tally> tallies(nbatch);
-        parallelForChunks(nbatch, 1, [&](size_t jb, size_t je) {
-            for (size_t j = jb; j < je; ++j) {
-                float* phi = zeroedBuffer(j, N * 3 * M).data();
-                if (M == 4) sweepReference<true>(m_, jobs[b0 + j], r, phi, tallies[j]);
-                else sweepStep(m_, jobs[b0 + j], r, phi, tallies[j]);
+        // Jobs that sweep the same planes go as groups (sweepStepGroup), each job's deposits
+        // and tally bit-identical to its own sweep, so any grouping gives the same sums.
+        const std::vector<std::pair<size_t, size_t>> groups =
+            M == 4 ? sweepGroups(nullptr, 0, 0) : sweepGroups(&jobs[b0], nbatch, maxThreads());
+        parallelForChunks(M == 4 ? nbatch : groups.size(), 1, [&](size_t gb, size_t ge) {
+            for (size_t g = gb; g < ge; ++g) {
+                if (M == 4) {
+                    sweepReference<true>(m_, jobs[b0 + g], r, zeroedBuffer(g, N * 3 * M).data(), tallies[g]);
+                    continue;
+                }
+                const auto [j0, j1] = groups[g];
+                std::vector<const Job*> group;
+                std::vector<float*> phi;
+                for (size_t j = j0; j < j1; ++j) {
+                    group.push_back(&jobs[b0 + j]);
+                    phi.push_back(zeroedBuffer(j, N * 3).data());
+                }
+                std::vector<Tally> groupTallies(group.size());
+                sweepStepGroup(m_, group, r, phi, groupTallies);
+                for (size_t j = j0; j < j1; ++j) tallies[j] = groupTallies[j - j0];
             }
         });
         for (size_t j = 0; j < nbatch; ++j) total.add(tallies[j]);

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <utility>
 #include <vector>
 
 #include "core/medium.h"
@@ -60,6 +61,12 @@ private:
     std::vector<float>& sh_;
     mutable std::vector<std::vector<float>> buffers_;
 };
+
+/// A batch's jobs jobs[0..n) as sweep groups [begin, end) (sweepStepGroup): runs of
+/// consecutive jobs that sweep the same planes with one sign, the largest split in halves
+/// until there are `threads` groups or none has two jobs. The sums do not depend on the
+/// grouping (each job's deposits are those of its own sweep).
+std::vector<std::pair<size_t, size_t>> sweepGroups(const Job* jobs, size_t n, int threads);
 
 /// The jobs grouped into sweep batches (sweepStepBatch): per sweep axis and source (in order
 /// of first appearance), the jobs of sign +1 then those of -1, cut into `split` contiguous

@@ -393,8 +393,9 @@ void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* ro
 }
 
 // Adds one allocated tile's deposits times k to phi; sums sigma d (sca) and q (src).
-void scatterTile(const AxisFrame& f, const PlaneRow* rows, const float* P, int layer, int tu, int tv, float k,
-                 float* phi, double sca[3], double src[3]) {
+// clear: the deposits read are zeroed (planes shared by a group, each sweep scattering its own).
+void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, int tu, int tv, float k, float* phi,
+                 double sca[3], double src[3], bool clear) {
     constexpr int K = Medium::kTile;
     const std::int32_t slot = f.tileSlot(layer, tu, tv);
     if (slot == -2) return;
@@ -402,7 +403,7 @@ void scatterTile(const AxisFrame& f, const PlaneRow* rows, const float* P, int l
     float ts[3] = {0, 0, 0}, tq[3] = {0, 0, 0};
     for (int s = 0; s < w.nA; ++s)
         for (int lv = 0; lv < w.nV; ++lv) {
-            const float* q = &P[planeIndex(rows, tv * K + lv, s, tu * K)];
+            float* q = &P[planeIndex(rows, tv * K + lv, s, tu * K)];
             const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
             for (int lu = 0; lu < w.nU; ++lu) {
                 float* ph = &phi[(x0 + size_t(lu) * w.sU) * 3];
@@ -413,6 +414,8 @@ void scatterTile(const AxisFrame& f, const PlaneRow* rows, const float* P, int l
                     tq[c] += q[(1 + c) * kLanes + lu];
                 }
             }
+            if (clear)
+                for (int c = 0; c < 3; ++c) std::fill_n(&q[(4 + c) * kLanes], w.nU, 0.0f);
         }
     for (int c = 0; c < 3; ++c) {
         sca[c] += ts[c];
@@ -476,11 +479,12 @@ public:
         return any;
     }
 
-    // phi += k * the layer's deposits (allocated voxels only); sums sigma d and q.
-    void scatter(int layer, float k, float* phi, double sca[3], double src[3]) const {
+    // phi += k * the layer's deposits (allocated voxels only); sums sigma d and q. clear:
+    // those deposits are zeroed for the next sweep of a group (sweepStepGroup).
+    void scatter(int layer, float k, float* phi, double sca[3], double src[3], bool clear = false) {
         for (int tv = 0; tv < f_.tnv; ++tv)
             for (int tu = 0; tu < f_.tnu; ++tu)
-                scatterTile(f_, rows_.data(), P_.data(), layer, tu, tv, k, phi, sca, src);
+                scatterTile(f_, rows_.data(), P_.data(), layer, tu, tv, k, phi, sca, src, clear);
     }
 
     const PlaneRow* rows() const { return rows_.data(); }
@@ -523,8 +527,11 @@ public:
     static constexpr int K = Medium::kTile;
 
     // shared: the batch's planes (the deposits are then added there times the job's
-    // weight A_perp w, and scattered by the batch); null: the sweep's own.
-    StepSweep(const Medium& m, const Job& job, int r, float depositScale, LayerPlanes* shared = nullptr)
+    // weight A_perp w, and scattered by the batch); null: the sweep's own. ownDeposits:
+    // shared planes (a group's) whose deposits this sweep scatters itself (scatterOwn),
+    // exactly as with planes of its own.
+    StepSweep(const Medium& m, const Job& job, int r, float depositScale, LayerPlanes* shared = nullptr,
+              bool ownDeposits = false)
         : m_(m), job_(job), g_(m, job, r), f_(m, job.axis), depositScale_(depositScale) {
         rows_count_ = size_t(r) * r * g_.nv;
         // A ray row gets storage only when it first meets allocated voxels (pristine_), so
@@ -554,7 +561,7 @@ public:
             bnd_[c] = job.boundary[c];
             inj_[c] = double(bnd_[c]) * double(size_t(r) * r * g_.nu * g_.nv);  // padding lanes excluded
         }
-        dk_ = shared ? float(g_.aPerp * job.weight) : 1.0f;
+        dk_ = shared && !ownDeposits ? float(g_.aPerp * job.weight) : 1.0f;
         if (!shared) own_ = std::make_unique<LayerPlanes>(m, job.axis);
         planes_ = shared ? shared : own_.get();
         stU_.resize(size_t(r));
@@ -589,6 +596,12 @@ public:
             if (any) planes_->scatter(layer, k, phi, sca_, injSrc_);
         }
         finish(tally);
+    }
+
+    // After sweepLayer on a group's planes: phi += this sweep's deposits of the layer,
+    // which are zeroed for the next sweep of the group.
+    void scatterOwn(int layer, float* phi) {
+        planes_->scatter(layer, float(g_.aPerp) * depositScale_, phi, sca_, injSrc_, true);
     }
 
     // The l-th tile layer this sweep crosses (its direction's order along the axis).
@@ -944,14 +957,64 @@ void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally,
     StepSweep(m, job, r, depositScale).run(phi, tally);
 }
 
+bool samePlanes(const Job& a, const Job& b) {
+    return !a.srcLinear && !b.srcLinear && a.axis == b.axis && a.src == b.src && a.srcStride == b.srcStride &&
+           a.srcScale.r == b.srcScale.r && a.srcScale.g == b.srcScale.g && a.srcScale.b == b.srcScale.b;
+}
+
+namespace {
+
+// One set of pooled arena slices (64-byte aligned) for a batch's or a group's sweeps.
+std::unique_ptr<ScratchBlock> attachArenas(const std::vector<std::unique_ptr<StepSweep>>& sweeps) {
+    auto slice = [](size_t floats) { return (floats + 15) / 16 * 16; };
+    size_t arenaFloats = 0;
+    for (const auto& sw : sweeps) arenaFloats += slice(sw->arenaFloats());
+    auto arena = std::make_unique<ScratchBlock>(arenaFloats);
+    size_t at = 0;
+    for (const auto& sw : sweeps) {
+        sw->attachArena(arena->data() + at);
+        at += slice(sw->arenaFloats());
+    }
+    return arena;
+}
+
+}  // namespace
+
+void sweepStepGroup(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<float*>& phi,
+                    std::vector<Tally>& tallies) {
+    if (r < 1 || r > 16) throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(r));
+    if (jobs.empty()) return;
+    const Job& first = *jobs[0];
+    for (const Job* j : jobs)
+        if (!samePlanes(*j, first) || j->sign != first.sign)
+            throw Error("LPM", "a sweep group takes jobs of one sweep axis, one sign and one voxel-constant source");
+    if (phi.size() != jobs.size() || tallies.size() != jobs.size())
+        throw Error("LPM", "a sweep group needs one deposit buffer and one tally per job");
+    // Every sweep reads the layer's planes, gathered once; each adds its deposits there and
+    // scatters (and zeroes) them before the next sweeps the layer: the arithmetic of sweepStep.
+    LayerPlanes planes(m, first.axis);
+    std::vector<std::unique_ptr<StepSweep>> sweeps;
+    for (const Job* j : jobs) sweeps.push_back(std::make_unique<StepSweep>(m, *j, r, 1.0f, &planes, true));
+    const std::unique_ptr<ScratchBlock> arena = attachArenas(sweeps);
+    const int layers = (std::array<int, 3>{m.nx, m.ny, m.nz}[size_t(first.axis)] + Medium::kTile - 1) / Medium::kTile;
+    for (int l = 0; l < layers; ++l) {
+        const int layer = sweeps[0]->layerAt(l);
+        const bool any = planes.gather(layer, first);
+        for (size_t j = 0; j < sweeps.size(); ++j) {
+            sweeps[j]->sweepLayer(layer, any);
+            if (any) sweeps[j]->scatterOwn(layer, phi[j]);
+        }
+    }
+    for (size_t j = 0; j < sweeps.size(); ++j) sweeps[j]->finish(tallies[j]);
+}
+
 void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
                     float depositPerWeight) {
     if (r < 1 || r > 16) throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(r));
     if (jobs.empty()) return;
     const Job& first = *jobs[0];
     for (const Job* j : jobs)
-        if (j->srcLinear || j->axis != first.axis || j->src != first.src || j->srcStride != first.srcStride ||
-            j->srcScale.r != first.srcScale.r || j->srcScale.g != first.srcScale.g || j->srcScale.b != first.srcScale.b)
+        if (!samePlanes(*j, first))
             throw Error("LPM", "a sweep batch takes jobs of one sweep axis and one voxel-constant source");
     // The jobs of each sign cross the layers in the same order: they advance together,
     // layer by layer, through one set of planes gathered once per layer for all of them.
@@ -968,16 +1031,7 @@ void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r,
                 weights += j->weight;
             }
         if (sweeps.empty()) continue;
-        // One pooled arena for the batch's sweeps, each slice 64-byte aligned.
-        auto slice = [](size_t floats) { return (floats + 15) / 16 * 16; };
-        size_t arenaFloats = 0;
-        for (const auto& sw : sweeps) arenaFloats += slice(sw->arenaFloats());
-        const ScratchBlock arena(arenaFloats);
-        size_t at = 0;
-        for (auto& sw : sweeps) {
-            sw->attachArena(arena.data() + at);
-            at += slice(sw->arenaFloats());
-        }
+        const std::unique_ptr<ScratchBlock> arena = attachArenas(sweeps);
         double sca[3] = {0, 0, 0}, src[3] = {0, 0, 0};
         const int layers =
             (std::array<int, 3>{m.nx, m.ny, m.nz}[size_t(first.axis)] + Medium::kTile - 1) / Medium::kTile;

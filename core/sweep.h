@@ -75,6 +75,17 @@ void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally,
 void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
                     float depositPerWeight);
 
+/// Whether two jobs sweep the same planes (one sweep axis, one voxel-constant source:
+/// src, srcStride, srcScale), so a batch or a group can gather them once for both.
+bool samePlanes(const Job& a, const Job& b);
+
+/// The sweeps of `jobs`, all with one sweep axis, one sign and one voxel-constant source,
+/// each with its own deposits: phi[j] and tallies[j] receive exactly what sweepStep of
+/// jobs[j] adds (bit for bit); each tile layer's planes are gathered once for all of them
+/// (a bin's directions in the separable passes, docs/performance.md "Sweep groups").
+void sweepStepGroup(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<float*>& phi,
+                    std::vector<Tally>& tallies);
+
 /// The exponential used by sweepStep: exp(-x) for x >= 0, relative error below 3e-7
 /// (measured over [0, 87] in tests/core/sweep_test.cpp), exactly 0 above 87.
 float expNeg(float x);

@@ -122,3 +122,38 @@ TEST(PassRunner, KeptBuffersStartEveryPassFromZero) {
         EXPECT_EQ(outs[2], outs[0]) << coeffs << " coefficients, after releaseBuffers";
     }
 }
+
+// Sweep groups of a batch: contiguous runs of jobs with the same planes and sign, covering
+// the batch in order; split until each thread has one where runs allow.
+TEST(PassRunner, SweepGroupsCoverTheBatchInRunsOfOnePlaneSet) {
+    const CubeQuadrature quad(4);
+    LpmCache cache;
+    const auto ff = cache.formFactors(4, 0, 0.0);
+    const JobFactory factory(quad, *ff, Mat3{}, 1.0, 1, 0.0);
+    std::vector<float> src(8 * 3, 1.0f);
+    const std::vector<Job> jobs = factory.sourceJobs(src, 1, RGB(0.9f));
+    for (int threads : {1, 2, 3, 16}) {
+        const auto groups = sweepGroups(jobs.data(), jobs.size(), threads);
+        size_t next = 0;
+        int runs = 0;
+        for (const auto& [b, e] : groups) {
+            ASSERT_EQ(b, next) << "groups cover the batch in order";
+            ASSERT_LT(b, e);
+            for (size_t j = b; j < e; ++j) {
+                EXPECT_TRUE(samePlanes(jobs[j], jobs[b]));
+                EXPECT_EQ(jobs[j].sign, jobs[b].sign);
+            }
+            runs += b == 0 || !samePlanes(jobs[b], jobs[b - 1]) || jobs[b].sign != jobs[b - 1].sign;
+            next = e;
+        }
+        EXPECT_EQ(next, jobs.size());
+        EXPECT_EQ(runs, 6) << "one run per cube face";
+        if (threads <= 6) EXPECT_EQ(groups.size(), 6u);
+        else EXPECT_EQ(groups.size(), size_t(threads));
+    }
+    // One run of four jobs and two threads: two groups of two.
+    const auto two = sweepGroups(jobs.data(), 4, 2);
+    ASSERT_EQ(two.size(), 2u);
+    EXPECT_EQ(two[0], std::make_pair(size_t(0), size_t(2)));
+    EXPECT_EQ(two[1], std::make_pair(size_t(2), size_t(4)));
+}
