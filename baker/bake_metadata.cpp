@@ -64,6 +64,7 @@ std::string canonicalSettings(const BakeOptions& o) {
     num("multires", s.multires);
     num("multires_after", s.multiresAfter);
     num("separable_source", s.separableSource);
+    num("coarse_tail_extrapolation", s.coarseTailExtrapolation);
     num("multires_min_voxels", s.multiresMinVoxels);
     num("multires_directions", s.multiresDirections);
     num("subdivide", s.subdivide);

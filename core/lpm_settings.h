@@ -34,27 +34,30 @@ struct LpmSettings {
     double krylovBytes = double(std::size_t(2) << 30);  ///< memory GMRES's Krylov vectors may take (the
                                                         ///< two-grid solve gives its coarse grid 128 B
                                                         ///< per fine stored voxel)
-    int linearSource = -1;                              ///< -1 auto (on when a voxel is optically thicker than
-                            ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
-                            ///< inside each voxel (linear characteristics; 4x the unshot memory)
-    double linearSourceAbove = 2.0;     ///< auto threshold: largest per-voxel optical depth
-    double linearSourceVoxelCap = 8.0;  ///< voxels optically thicker than this keep a constant source
-    int deltaM = -1;                    ///< forward-peak truncation (delta-M, f = g^4): -1 auto (on when
-                                        ///< g > deltaMAbove and the albedo is grey), 0 off, 1 on (g > 0, grey albedo)
-    double deltaMAbove = 0.0;           ///< auto threshold on g (measured better for g = 0.5, 0.85, 0.9, 0.99)
-    double envHotShare = 0.01;          ///< environment pixels holding at least this share of its power
-                                        ///< (at most 16) are swept like suns, in their exact direction; 0 = off
-    int multires = -1;                  ///< higher orders on a 2x coarser grid: -1 auto (when the block stores
-                                        ///< at least multiresMinVoxels voxels), 0 off, 1 on
-    int multiresAfter = 1;              ///< passes at full resolution before the coarse grid takes over (>= 1)
-    int multiresMinVoxels = 1 << 16;    ///< auto threshold on stored voxels (2 x 32^3)
-    int multiresDirections = -1;        ///< directions per face on the coarse grid: -1 auto (n/2 when the
-                                        ///< bins still divide it and it is >= 2, else n)
-    int separableSource = -1;           ///< fine-grid sources of the two-grid solve held separably (each
-                                        ///< voxel's angular integral, its coarse parent's angular shape;
-                                        ///< core/separable_source.h): -1 auto (with unshot bins), 0 off, 1 on
-    int subdivide = 1;                  ///< solve on voxels split k x k x k (same medium), average back: for
-                                        ///< optically thick voxels, where a voxel-constant source leaks light
+    bool coarseTailExtrapolation = true;  ///< the two-grid coarse solve stops early where its passes decay
+                                          ///< geometrically and adds the rest as that series
+                                          ///< (docs/multires.md, "Geometric tail")
+    int linearSource = -1;                ///< -1 auto (on when a voxel is optically thicker than
+                                          ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
+                                          ///< inside each voxel (linear characteristics; 4x the unshot memory)
+    double linearSourceAbove = 2.0;       ///< auto threshold: largest per-voxel optical depth
+    double linearSourceVoxelCap = 8.0;    ///< voxels optically thicker than this keep a constant source
+    int deltaM = -1;                      ///< forward-peak truncation (delta-M, f = g^4): -1 auto (on when
+                                          ///< g > deltaMAbove and the albedo is grey), 0 off, 1 on (g > 0, grey albedo)
+    double deltaMAbove = 0.0;             ///< auto threshold on g (measured better for g = 0.5, 0.85, 0.9, 0.99)
+    double envHotShare = 0.01;            ///< environment pixels holding at least this share of its power
+                                          ///< (at most 16) are swept like suns, in their exact direction; 0 = off
+    int multires = -1;                    ///< higher orders on a 2x coarser grid: -1 auto (when the block stores
+                                          ///< at least multiresMinVoxels voxels), 0 off, 1 on
+    int multiresAfter = 1;                ///< passes at full resolution before the coarse grid takes over (>= 1)
+    int multiresMinVoxels = 1 << 16;      ///< auto threshold on stored voxels (2 x 32^3)
+    int multiresDirections = -1;          ///< directions per face on the coarse grid: -1 auto (n/2 when the
+                                          ///< bins still divide it and it is >= 2, else n)
+    int separableSource = -1;             ///< fine-grid sources of the two-grid solve held separably (each
+                                          ///< voxel's angular integral, its coarse parent's angular shape;
+                                          ///< core/separable_source.h): -1 auto (with unshot bins), 0 off, 1 on
+    int subdivide = 1;                    ///< solve on voxels split k x k x k (same medium), average back: for
+                                          ///< optically thick voxels, where a voxel-constant source leaks light
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass
     /// Also return each sun's beam transmittance (LpmResult::sunTerms) so its single
     /// scattering can be stored exactly beside the SH (core/sun_term.h); res.sh is unchanged.

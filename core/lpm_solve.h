@@ -49,7 +49,8 @@ private:
     void runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs = nullptr);
     void finishWithGmres();
     void clampNegativeLinear();
-    void addToSourceSum(const std::vector<float>& src);
+    void addToSourceSum(const std::vector<float>& src, float scale = 1.0f);
+    bool extrapolateTail(double last, double ratio);  ///< coarse continuation: the geometric tail
     void recordPass(int pass, const Tally& t, Clock::time_point start, bool physical = true);
     double sourcePower(const std::vector<float>& u) const;  ///< sigma_s U V w_d summed, mean over RGB
     std::vector<Job> sourceJobs(const std::vector<float>& src) const { return jobs_.sourceJobs(src, M_, m_.albedo); }
@@ -82,6 +83,8 @@ private:
     };
     std::unique_ptr<SeparableState> sep_;
     int pass_ = 1;
+    float tailFactor_ = 1.0f;        ///< next's weight in the source sum: 1, or 1/(1 - rho) when extrapolated
+    double extrapolatedError_ = -1;  ///< the extrapolation's estimated error (power), when it stopped the solve
     bool continuedOnCoarse_ = false;
 };
 

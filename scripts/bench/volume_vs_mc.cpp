@@ -11,7 +11,8 @@
 // raysHigherOrders), r1-all (1 ray per voxel in every pass, single scattering too), k8
 // (GMRES when plain iteration would need more than 8 more passes), previous (the default
 // before raysHigherOrders and the coarse grid's earlier GMRES), full-sources (the two-grid
-// solve's fine sources held in full, bins per voxel, not separably).
+// solve's fine sources held in full, bins per voxel, not separably), full-tail (the coarse
+// solve iterated to its tolerance, no geometric tail).
 #include <sys/resource.h>
 
 #include <cstdio>
@@ -55,6 +56,7 @@ LpmSettings settingsNamed(const std::string& name) {
     else if (name == "k8") s.krylovAfter = 8;
     else if (name == "previous") s.raysHigherOrders = 2, s.coarseKrylovAfter = 25;  // session 6's default
     else if (name == "full-sources") s.separableSource = 0;
+    else if (name == "full-tail") s.coarseTailExtrapolation = false;
     else if (name != "default") {
         std::fprintf(stderr, "unknown setting '%s'\n", name.c_str());
         std::exit(2);
