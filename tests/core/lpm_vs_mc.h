@@ -127,6 +127,27 @@ inline Lights skyAndSun(const EnvMap& sky) {
 }
 
 /// Whether one of the solver's decisions contains `what`.
+/// Relative RMS difference of a's band 0 against b's over the voxels holding medium.
+inline double band0RelativeRms(const Medium& m, const LpmResult& a, const LpmResult& b) {
+    double num = 0, den = 0;
+    for (size_t v = 0; v < m.voxelCount(); ++v) {
+        if (!(m.sigmaT[v] > 0)) continue;
+        for (int c = 0; c < 3; ++c) {
+            const double x = a.coeff(v, 0)[c], y = b.coeff(v, 0)[c];
+            num += (x - y) * (x - y);
+            den += y * y;
+        }
+    }
+    return std::sqrt(num / den);
+}
+
+/// Passes a two-grid solve ran on its coarse grid.
+inline int coarsePassCount(const LpmResult& r) {
+    int n = 0;
+    for (const PassStats& p : r.passes) n += p.coarse;
+    return n;
+}
+
 inline bool saidDecision(const LpmResult& r, const char* what) {
     for (const auto& d : r.decisions)
         if (d.find(what) != std::string::npos) return true;
