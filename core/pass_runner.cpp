@@ -138,16 +138,19 @@ void PassRunner::sweepInBatches(const std::vector<Job>& jobs, const std::vector<
         if (before) before(b);
         std::vector<Tally> tallies(nbatch);
         // Jobs that sweep the same planes go as groups (sweepStepGroup), each job's deposits
-        // and tally bit-identical to its own sweep, so any grouping gives the same sums.
-        const std::vector<std::pair<size_t, size_t>> groups =
-            M == 4 ? sweepGroups(nullptr, 0, 0) : sweepGroups(&jobs[b0], nbatch, maxThreads());
-        parallelForChunks(M == 4 ? nbatch : groups.size(), 1, [&](size_t gb, size_t ge) {
+        // and tally bit-identical to its own sweep, so any grouping gives the same sums. The
+        // linear source's reference kernel sweeps one job at a time.
+        std::vector<std::pair<size_t, size_t>> groups;
+        if (M == 4)
+            for (size_t j = 0; j < nbatch; ++j) groups.push_back({j, j + 1});
+        else groups = sweepGroups(&jobs[b0], nbatch, maxThreads());
+        parallelForChunks(groups.size(), 1, [&](size_t gb, size_t ge) {
             for (size_t g = gb; g < ge; ++g) {
+                const auto [j0, j1] = groups[g];
                 if (M == 4) {
-                    sweepReference<true>(m_, jobs[b0 + g], r, zeroedBuffer(g, N * 3 * M).data(), tallies[g]);
+                    sweepReference<true>(m_, jobs[b0 + j0], r, zeroedBuffer(j0, N * 3 * M).data(), tallies[j0]);
                     continue;
                 }
-                const auto [j0, j1] = groups[g];
                 std::vector<const Job*> group;
                 std::vector<float*> phi;
                 for (size_t j = j0; j < j1; ++j) {
@@ -156,7 +159,7 @@ void PassRunner::sweepInBatches(const std::vector<Job>& jobs, const std::vector<
                 }
                 std::vector<Tally> groupTallies(group.size());
                 sweepStepGroup(m_, group, r, phi, groupTallies);
-                for (size_t j = j0; j < j1; ++j) tallies[j] = groupTallies[j - j0];
+                std::copy(groupTallies.begin(), groupTallies.end(), tallies.begin() + std::ptrdiff_t(j0));
             }
         });
         for (size_t j = 0; j < nbatch; ++j) total.add(tallies[j]);

@@ -964,6 +964,11 @@ bool samePlanes(const Job& a, const Job& b) {
 
 namespace {
 
+// Tile layers along a sweep axis.
+int tileLayers(const Medium& m, int axis) {
+    return (std::array<int, 3>{m.nx, m.ny, m.nz}[size_t(axis)] + Medium::kTile - 1) / Medium::kTile;
+}
+
 // One set of pooled arena slices (64-byte aligned) for a batch's or a group's sweeps.
 std::unique_ptr<ScratchBlock> attachArenas(const std::vector<std::unique_ptr<StepSweep>>& sweeps) {
     auto slice = [](size_t floats) { return (floats + 15) / 16 * 16; };
@@ -996,7 +1001,7 @@ void sweepStepGroup(const Medium& m, const std::vector<const Job*>& jobs, int r,
     std::vector<std::unique_ptr<StepSweep>> sweeps;
     for (const Job* j : jobs) sweeps.push_back(std::make_unique<StepSweep>(m, *j, r, 1.0f, &planes, true));
     const std::unique_ptr<ScratchBlock> arena = attachArenas(sweeps);
-    const int layers = (std::array<int, 3>{m.nx, m.ny, m.nz}[size_t(first.axis)] + Medium::kTile - 1) / Medium::kTile;
+    const int layers = tileLayers(m, first.axis);
     for (int l = 0; l < layers; ++l) {
         const int layer = sweeps[0]->layerAt(l);
         const bool any = planes.gather(layer, first);
@@ -1033,8 +1038,7 @@ void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r,
         if (sweeps.empty()) continue;
         const std::unique_ptr<ScratchBlock> arena = attachArenas(sweeps);
         double sca[3] = {0, 0, 0}, src[3] = {0, 0, 0};
-        const int layers =
-            (std::array<int, 3>{m.nx, m.ny, m.nz}[size_t(first.axis)] + Medium::kTile - 1) / Medium::kTile;
+        const int layers = tileLayers(m, first.axis);
         for (int l = 0; l < layers; ++l) {
             const int layer = sweeps[0]->layerAt(l);
             const bool any = planes.gather(layer, first);
