@@ -126,6 +126,54 @@ void foldFineRange(size_t vb, size_t ve, const BatchCoefs& k, const FineCoarseMa
     }
 }
 
+/// foldFineRange for the common batch, 4 jobs and SH order 2 (27 floats per SH row), with
+/// the same sums in the same order (each value takes job 0's term first, job 3's last), as
+/// straight-line vector code: the general loop's per-job tests and triple patterns cost
+/// more than its memory traffic (docs/performance.md, session 17).
+#if defined(__GNUC__)
+typedef float Float8 __attribute__((vector_size(32), aligned(4), may_alias));
+LPM_SIMD_CLONES
+void foldFineRange4x9(size_t vb, size_t ve, const BatchCoefs& k, const FineCoarseMap& map, const float* sigmaT,
+                      const std::vector<std::vector<float>>& phi, float* sh, float* mag, float* psi) {
+    const float* const ph[4] = {phi[0].data(), phi[1].data(), phi[2].data(), phi[3].data()};
+    const float* const cf = k.sh3.data();  // [job][27]
+    for (size_t f = vb; f < ve; ++f) {
+        const std::uint32_t parent = map.parent[f];
+        if (parent == FineCoarseMap::kNone) continue;
+        float d[12];
+        for (int j = 0; j < 4; ++j)
+            for (int c = 0; c < 3; ++c) d[j * 3 + c] = ph[j][f * 3 + size_t(c)];
+        float* row = &sh[f * 27];
+        Float8 s0 = *reinterpret_cast<const Float8*>(row), s1 = *reinterpret_cast<const Float8*>(row + 8),
+               s2 = *reinterpret_cast<const Float8*>(row + 16);
+        float t0 = row[24], t1 = row[25], t2 = row[26];
+        for (int j = 0; j < 4; ++j) {
+            const float a = d[j * 3], b = d[j * 3 + 1], c = d[j * 3 + 2];
+            const Float8 pa = {a, b, c, a, b, c, a, b}, pb = {c, a, b, c, a, b, c, a}, pc = {b, c, a, b, c, a, b, c};
+            const float* q = cf + j * 27;
+            s0 += *reinterpret_cast<const Float8*>(q) * pa;
+            s1 += *reinterpret_cast<const Float8*>(q + 8) * pb;
+            s2 += *reinterpret_cast<const Float8*>(q + 16) * pc;
+            t0 += q[24] * a;
+            t1 += q[25] * b;
+            t2 += q[26] * c;
+        }
+        *reinterpret_cast<Float8*>(row) = s0;
+        *reinterpret_cast<Float8*>(row + 8) = s1;
+        *reinterpret_cast<Float8*>(row + 16) = s2;
+        row[24] = t0;
+        row[25] = t1;
+        row[26] = t2;
+        float* m = &mag[f * 3];
+        for (int j = 0; j < 4; ++j)
+            for (int c = 0; c < 3; ++c) m[c] += k.mag[size_t(j)] * d[j * 3 + c];
+        const float sigma = sigmaT[f];
+        float* ps = &psi[size_t(parent) * 12];
+        for (int i = 0; i < 12; ++i) ps[i] += sigma * d[i];
+    }
+}
+#endif
+
 /// Coarse voxels [cb, ce): acc(d) += sum_j binCoef_j(d) psi_j, and psi back to 0.
 LPM_SIMD_CLONES
 void foldCoarseRange(size_t cb, size_t ce, const BatchCoefs& k, float* acc, float* psi) {
@@ -165,6 +213,12 @@ void SeparableFold::fold(bool depositSh, const Job* jobs, size_t n, const std::v
     if (psi_.size() < map_.sigmaSum.size() * n * 3) assignZeroed(psi_, map_.sigmaSum.size() * n * 3);
     // Chunks of whole groups: no two write the same parent's psi.
     parallelForChunks(map_.parent.size(), map_.groupSize, [&](size_t vb, size_t ve) {
+#if defined(__GNUC__)
+        if (n == 4 && nc_ == 9 && depositSh) {
+            foldFineRange4x9(vb, ve, k, map_, sigmaT_.data(), phi, sh.data(), out_.magnitude.data(), psi_.data());
+            return;
+        }
+#endif
         foldFineRange(vb, ve, k, map_, sigmaT_.data(), phi, depositSh, sh.data(), out_.magnitude.data(), psi_.data());
     });
     parallelForChunks(map_.sigmaSum.size(), 4096,

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/rng.h"
+#include "core/separable_source.h"
 #include "core/sweep.h"
 
 using namespace lpm;
@@ -81,5 +82,41 @@ void BM_SweepBatch16(benchmark::State& state) {
 BENCHMARK(BM_SweepBatch16)->ArgsProduct({{1, 2}, {32, 96}})->Unit(benchmark::kMillisecond);
 
 }  // namespace
+
+// The separable fold of one batch (4 jobs of one bin, core/separable_source.h) on a dense
+// block of n^3 fine voxels: each voxel's SH row (9 coefficients x RGB) read and written,
+// 4 deposits read, its angular integral and its parent's psi updated. The counter
+// "bytes/s" counts the fine voxel's main streams (SH read + write 216 B, deposits 48 B,
+// integral 24 B, sigma and parent 8 B: 296 B), the figure to compare with the machine's
+// streaming bandwidth (docs/performance.md).
+void BM_SeparableFold(benchmark::State& state) {
+    const int n = int(state.range(0));
+    const Medium fine = denseBlock(n);
+    Medium coarse;
+    coarse.allocate((n + 1) / 2, (n + 1) / 2, (n + 1) / 2);
+    const FineCoarseMap map(fine, coarse);
+    constexpr int kBins = 24, kCoeffs = 9;
+    const std::vector<double> binWeight(kBins, 4 * 3.14159265358979 / kBins);
+    std::vector<Job> jobs(4);
+    Pcg32 rng(11, 3);
+    for (Job& j : jobs) {
+        j.shCoef.resize(kCoeffs);
+        j.binCoef.resize(kBins);
+        for (double& c : j.shCoef) c = rng.uniform() - 0.5;
+        for (double& c : j.binCoef) c = rng.uniform() / kBins;
+    }
+    std::vector<std::vector<float>> phi(4, std::vector<float>(fine.voxelCount() * 3));
+    for (auto& p : phi)
+        for (float& v : p) v = float(rng.uniform());
+    std::vector<float> sh(fine.voxelCount() * kCoeffs * 3, 0.0f);
+    SeparableFold fold(map, fine.sigmaT, binWeight, kCoeffs);
+    for (auto _ : state) {
+        fold.fold(true, jobs.data(), jobs.size(), phi, sh);
+        benchmark::DoNotOptimize(sh.data());
+    }
+    state.counters["bytes/s"] =
+        benchmark::Counter(296.0 * double(fine.voxelCount()) * double(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_SeparableFold)->Arg(32)->Arg(128)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_MAIN();

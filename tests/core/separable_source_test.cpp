@@ -45,7 +45,7 @@ struct FoldInput {
     std::vector<double> binWeight;
     std::vector<Job> jobs;
     std::vector<std::vector<float>> phi;  // [job][voxel][rgb]
-    FoldInput(const Medium& m, size_t n, std::uint64_t seed) {
+    FoldInput(const Medium& m, size_t n, std::uint64_t seed, int shCoeffs = 4) : coeffs(shCoeffs) {
         Pcg32 rng(seed, 3);
         for (int d = 0; d < bins; ++d) binWeight.push_back(0.5 + rng.uniform());
         for (size_t j = 0; j < n; ++j) {
@@ -86,6 +86,28 @@ SeparableSource foldSeparably(const Medium& f, const FineCoarseMap& map, const F
     return fold.finish();
 }
 
+// The separable fold of `in` in batches of 3, 4 and 7 jobs against the full fold's SH,
+// integrals and restriction.
+void expectFoldsMatch(const Medium& f, const FineCoarseMap& map, const FoldInput& in, const std::vector<float>& U,
+                      const std::vector<float>& shFull, const std::vector<float>& restrictedFull) {
+    for (size_t batch : {size_t(3), size_t(4), size_t(7)}) {
+        SCOPED_TRACE(batch);
+        std::vector<float> sh;
+        const SeparableSource s = foldSeparably(f, map, in, sh, batch);
+        for (size_t i = 0; i < sh.size(); ++i) ASSERT_NEAR(sh[i], shFull[i], 1e-5f * (1 + std::fabs(shFull[i]))) << i;
+        for (size_t v = 0; v < f.voxelCount(); ++v)
+            for (int ch = 0; ch < 3; ++ch) {
+                double m = 0;
+                for (int d = 0; d < in.bins; ++d) m += in.binWeight[d] * U[(v * in.bins + d) * 3 + ch];
+                ASSERT_NEAR(s.magnitude[v * 3 + ch], m, 1e-5 * (1 + m)) << v;
+            }
+        const std::vector<float> r = s.restricted();
+        ASSERT_EQ(r.size(), restrictedFull.size());
+        for (size_t i = 0; i < r.size(); ++i)
+            ASSERT_NEAR(r[i], restrictedFull[i], 1e-5f * (1 + restrictedFull[i])) << i;
+    }
+}
+
 }  // namespace
 
 TEST(SeparableSource, MapPairsEveryFineVoxelOfTheBlockWithItsParent) {
@@ -111,29 +133,19 @@ TEST(SeparableSource, MapPairsEveryFineVoxelOfTheBlockWithItsParent) {
 
 // The separable fold computes the full fold's SH exactly (same order of sums) and, of its
 // next source, each voxel's angular integral and the sigma-weighted restriction
-// (restrictSource of the full source), for any batch size.
+// (restrictSource of the full source), for any batch size; with 9 SH coefficients (order 2)
+// batches of 4 take the unrolled kernel (foldFineRange4x9), the others the general one.
 TEST(SeparableSource, FoldKeepsTheFullFoldsIntegralsAndRestriction) {
-    const Medium f = sparseBlock(4);
-    const Medium c = coarsen(f);
-    const FineCoarseMap map(f, c);
-    const FoldInput in(f, 7, 5);
-    std::vector<float> U, shFull;
-    in.fullFold(f.voxelCount(), U, shFull);
-    const std::vector<float> restrictedFull = restrictSource(f, c, U, in.bins, 1);
-    for (size_t batch : {size_t(3), size_t(7)}) {
-        std::vector<float> sh;
-        const SeparableSource s = foldSeparably(f, map, in, sh, batch);
-        for (size_t i = 0; i < sh.size(); ++i) ASSERT_NEAR(sh[i], shFull[i], 1e-5f * (1 + std::fabs(shFull[i]))) << i;
-        for (size_t v = 0; v < f.voxelCount(); ++v)
-            for (int ch = 0; ch < 3; ++ch) {
-                double m = 0;
-                for (int d = 0; d < in.bins; ++d) m += in.binWeight[d] * U[(v * in.bins + d) * 3 + ch];
-                ASSERT_NEAR(s.magnitude[v * 3 + ch], m, 1e-5 * (1 + m)) << v;
-            }
-        const std::vector<float> r = s.restricted();
-        ASSERT_EQ(r.size(), restrictedFull.size());
-        for (size_t i = 0; i < r.size(); ++i)
-            ASSERT_NEAR(r[i], restrictedFull[i], 1e-5f * (1 + restrictedFull[i])) << i;
+    for (int coeffs : {4, 9}) {
+        SCOPED_TRACE(coeffs);
+        const Medium f = sparseBlock(4);
+        const Medium c = coarsen(f);
+        const FineCoarseMap map(f, c);
+        const FoldInput in(f, 7, 5, coeffs);
+        std::vector<float> U, shFull;
+        in.fullFold(f.voxelCount(), U, shFull);
+        const std::vector<float> restrictedFull = restrictSource(f, c, U, in.bins, 1);
+        expectFoldsMatch(f, map, in, U, shFull, restrictedFull);
     }
 }
 
