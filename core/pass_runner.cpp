@@ -7,6 +7,7 @@
 #include "core/fold_kernel.h"
 #include "core/malloc_policy.h"
 #include "core/parallel.h"
+#include "core/simd_clones.h"
 
 namespace lpm {
 
@@ -39,6 +40,42 @@ std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>& jobs, 
 
 namespace {
 
+/// The per-direction coefficients of a batch, each repeated for the 3 channels.
+struct FoldCoefs {
+    std::vector<float> binC, shC;  ///< [job][bin][rgb], [job][coeff][rgb]
+};
+
+/// Voxels [vb, ve) of foldDeposits.
+LPM_SIMD_CLONES
+void foldDepositRange(size_t vb, size_t ve, const FoldShape& f, bool depositSh, size_t n, const FoldCoefs& k,
+                      const std::vector<std::vector<float>>& phi, const std::vector<std::uint8_t>& slopeVoxel,
+                      float* sh, float* out) {
+    const int nb = f.bins, M = f.moments, nc = f.coeffs;
+    const size_t perVoxel = size_t(nb) * M * 3;
+    for (size_t x = vb; x < ve; ++x) {
+        float* un = &out[x * perVoxel];
+        const int mx = slopeVoxel.empty() || slopeVoxel[x] ? M : 1;
+        for (size_t j = 0; j < n; ++j) {
+            const float* p = &phi[j][x * 3 * M];  // [moment][rgb]; moment 0 is the mean
+            if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
+            const RgbRepeat rep(p);
+            if (depositSh) addTimesRgb(&sh[x * nc * 3], &k.shC[j * nc * 3], rep, nc);
+            const float* cj = &k.binC[j * nb * 3];
+            if (M == 1) {
+                addTimesRgb(un, cj, rep, nb);
+                continue;
+            }
+            for (int d = 0; d < nb; ++d) {
+                const float bc = cj[d * 3];
+                for (int c = 0; c < 3; ++c) un[d * M * 3 + c] += bc * p[c];
+                // Least-squares slope from the first moment: Int xi_k^2 = 1/12.
+                for (int k1 = 1; k1 < mx; ++k1)
+                    for (int c = 0; c < 3; ++c) un[(d * M + k1) * 3 + c] += 12.0f * bc * p[k1 * 3 + c];
+            }
+        }
+    }
+}
+
 /// Folds the deposits phi[j] ([voxel][moment][rgb]) of jobs[0..n) into the SH result
 /// ([voxel][coeff][rgb], when depositSh) and the next unshot source `out`
 /// ([voxel][bin][moment][rgb]). Voxels outer, jobs inner (in job order, so the sums do not
@@ -48,37 +85,17 @@ void foldDeposits(const FoldShape& f, bool depositSh, const Job* jobs, size_t n,
                   const std::vector<std::vector<float>>& phi, const std::vector<std::uint8_t>& slopeVoxel,
                   std::vector<float>& sh, std::vector<float>& out) {
     const int nb = f.bins, M = f.moments, nc = f.coeffs;
-    const size_t N = phi.empty() ? 0 : phi[0].size() / (3 * size_t(M)), perVoxel = size_t(nb) * M * 3;
-    // Per job, each bin and SH coefficient repeated for the 3 channels.
-    std::vector<float> binC(n * nb * 3), shC(n * nc * 3);
+    const size_t N = phi.empty() ? 0 : phi[0].size() / (3 * size_t(M));
+    FoldCoefs k;
+    k.binC.resize(n * nb * 3);
+    k.shC.resize(n * nc * 3);
     for (size_t j = 0; j < n; ++j)
         for (int c = 0; c < 3; ++c) {
-            for (int d = 0; d < nb; ++d) binC[(j * nb + d) * 3 + c] = float(jobs[j].binCoef[d]);
-            for (int k = 0; k < nc; ++k) shC[(j * nc + k) * 3 + c] = float(jobs[j].shCoef[k]);
+            for (int d = 0; d < nb; ++d) k.binC[(j * nb + d) * 3 + c] = float(jobs[j].binCoef[d]);
+            for (int s = 0; s < nc; ++s) k.shC[(j * nc + s) * 3 + c] = float(jobs[j].shCoef[s]);
         }
     parallelForChunks(N, 1024, [&](size_t vb, size_t ve) {
-        for (size_t x = vb; x < ve; ++x) {
-            float* un = &out[x * perVoxel];
-            const int mx = slopeVoxel.empty() || slopeVoxel[x] ? M : 1;
-            for (size_t j = 0; j < n; ++j) {
-                const float* p = &phi[j][x * 3 * M];  // [moment][rgb]; moment 0 is the mean
-                if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
-                const RgbRepeat rep(p);
-                if (depositSh) addTimesRgb(&sh[x * nc * 3], &shC[j * nc * 3], rep, nc);
-                const float* cj = &binC[j * nb * 3];
-                if (M == 1) {
-                    addTimesRgb(un, cj, rep, nb);
-                    continue;
-                }
-                for (int d = 0; d < nb; ++d) {
-                    const float bc = cj[d * 3];
-                    for (int c = 0; c < 3; ++c) un[d * M * 3 + c] += bc * p[c];
-                    // Least-squares slope from the first moment: Int xi_k^2 = 1/12.
-                    for (int k = 1; k < mx; ++k)
-                        for (int c = 0; c < 3; ++c) un[(d * M + k) * 3 + c] += 12.0f * bc * p[k * 3 + c];
-                }
-            }
-        }
+        foldDepositRange(vb, ve, f, depositSh, n, k, phi, slopeVoxel, sh.data(), out.data());
     });
 }
 
