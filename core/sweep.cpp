@@ -367,6 +367,7 @@ inline void gatherChunk(const GatherSource& g, bool empty, size_t x0, size_t sU,
 // Tiles first..last of tile row tv into the planes (and each chunk's sigma range into R,
 // 2 floats a chunk), in plane order (voxel row, slice, tile), so the writes stream through
 // consecutive chunks; the tiles' reads (a few KB each) stay in cache across the row.
+LPM_SIMD_CLONES
 void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* rows, float* P, float* R, int layer,
                    int tv, int first, int last, std::vector<AxisFrame::TileWalk>& walks,
                    std::vector<std::uint8_t>& empty) {
