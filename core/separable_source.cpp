@@ -50,22 +50,32 @@ void SeparableSource::addToOffset(const std::vector<float>& coarse, float scale)
     for (size_t i = 0; i < offset.size(); ++i) offset[i] += scale * coarse[i];
 }
 
-void SeparableSource::fillBin(const FineCoarseMap& map, int bin, float* out) const {
-    const size_t nb = size_t(bins);
-    parallelForChunks(map.parent.size(), 1 << 14, [&](size_t vb, size_t ve) {
-        for (size_t v = vb; v < ve; ++v) {
-            const std::uint32_t p = map.parent[v];
-            for (int c = 0; c < 3; ++c) {
-                if (p == FineCoarseMap::kNone) {
-                    out[v * 3 + c] = 0.0f;
-                    continue;
-                }
-                const size_t i = (p * nb + size_t(bin)) * 3 + size_t(c), pc = size_t(p) * 3 + size_t(c);
-                const float s = invAbs[pc] > 0 ? std::fabs(shape[i]) * invAbs[pc] : invWeight;
-                out[v * 3 + c] = shape[i] + (magnitude[v * 3 + c] - norm[pc]) * s + (offset.empty() ? 0.0f : offset[i]);
+namespace {
+
+/// Fine voxels [vb, ve) of fillBin: U_f(bin) from the parent's row (see the file comment).
+LPM_SIMD_CLONES
+void fillBinRange(size_t vb, size_t ve, const SeparableSource& u, const std::uint32_t* parent, int bin, float* out) {
+    const size_t nb = size_t(u.bins);
+    const float* off = u.offset.empty() ? nullptr : u.offset.data();
+    for (size_t v = vb; v < ve; ++v) {
+        const std::uint32_t p = parent[v];
+        for (int c = 0; c < 3; ++c) {
+            if (p == FineCoarseMap::kNone) {
+                out[v * 3 + c] = 0.0f;
+                continue;
             }
+            const size_t i = (p * nb + size_t(bin)) * 3 + size_t(c), pc = size_t(p) * 3 + size_t(c);
+            const float s = u.invAbs[pc] > 0 ? std::fabs(u.shape[i]) * u.invAbs[pc] : u.invWeight;
+            out[v * 3 + c] = u.shape[i] + (u.magnitude[v * 3 + c] - u.norm[pc]) * s + (off ? off[i] : 0.0f);
         }
-    });
+    }
+}
+
+}  // namespace
+
+void SeparableSource::fillBin(const FineCoarseMap& map, int bin, float* out) const {
+    parallelForChunks(map.parent.size(), 1 << 14,
+                      [&](size_t vb, size_t ve) { fillBinRange(vb, ve, *this, map.parent.data(), bin, out); });
 }
 
 double SeparableSource::power(const FineCoarseMap& map, const std::vector<double>& binWeight, const RGB& albedo,
