@@ -1,7 +1,8 @@
 // Sweep kernel throughput (Google Benchmark): ray-segment updates per second of one
 // sweep, one thread, on a dense random block, by rays per voxel and with or without a
 // volume source; and a batch of 16 directions sharing their planes (sweepStepBatch), on
-// a block of 32^3 (its planes in L2) and 96^3 (in L3).
+// a block of 32^3 (its planes in L2) and 96^3 (in L3); and the separable fold of one
+// batch at SH order 2 (BM_SeparableFold, bytes/s of its main streams).
 //   lpm_bench_kernel [--benchmark_filter=...]
 // The counter "segments/s" is the figure the roofline estimate in docs/performance.md is
 // compared with.
@@ -81,8 +82,6 @@ void BM_SweepBatch16(benchmark::State& state) {
 }
 BENCHMARK(BM_SweepBatch16)->ArgsProduct({{1, 2}, {32, 96}})->Unit(benchmark::kMillisecond);
 
-}  // namespace
-
 // The separable fold of one batch (4 jobs of one bin, core/separable_source.h) on a dense
 // block of n^3 fine voxels: each voxel's SH row (9 coefficients x RGB) read and written,
 // 4 deposits read, its angular integral and its parent's psi updated. The counter
@@ -118,5 +117,7 @@ void BM_SeparableFold(benchmark::State& state) {
         benchmark::Counter(296.0 * double(fine.voxelCount()) * double(state.iterations()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_SeparableFold)->Arg(32)->Arg(128)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
 
 BENCHMARK_MAIN();
