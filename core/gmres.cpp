@@ -58,11 +58,14 @@ GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, con
     GmresReport rep;
     rep.rhsNorm = std::sqrt(weightedDot(weights, B, B));
     X.assign(len, 0.0f);
-    std::vector<float> r = B, w(len);
-    std::vector<std::vector<float>> basis;
+    // Full-length vectors alive in a cycle: X, w and the basis (B is the caller's). The
+    // residual r starts each cycle as basis[0] (it is not needed again until the cycle's
+    // end) and is formed in w's storage: no buffer of its own.
+    std::vector<float> w(len);
+    std::vector<std::vector<float>> basis(1, B);
     double rNorm = rep.rhsNorm;
     while (rNorm > target && mayApply()) {
-        basis.assign(1, r);
+        basis.resize(1);
         scale(basis[0], rNorm);
         std::vector<std::vector<double>> H(restart + 1, std::vector<double>(restart, 0.0));
         std::vector<double> cs(restart), sn(restart), g(restart + 1, 0.0);
@@ -93,17 +96,23 @@ GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, con
                 ++k;
                 break;
             }
+            if (k + 1 == restart) {  // the cycle ends: V_{k+1} would not be used
+                ++k;
+                break;
+            }
             basis.push_back(w);
             scale(basis.back(), hk1);
         }
         updateSolution(H, g, k, basis, X);
-        // True residual r = B - A X (one more product; keeps restarts honest).
+        // True residual r = B - A X (one more product; keeps restarts honest), formed in
+        // w's storage and moved to basis[0] for the next cycle.
         A(X, w);
         ++rep.matvecs;
         parallelForChunks(len, kChunk, [&](size_t b0, size_t e0) {
-            for (size_t i = b0; i < e0; ++i) r[i] = B[i] - w[i];
+            for (size_t i = b0; i < e0; ++i) w[i] = B[i] - w[i];
         });
-        rNorm = std::sqrt(weightedDot(weights, r, r));
+        rNorm = std::sqrt(weightedDot(weights, w, w));
+        std::swap(basis[0], w);
     }
     rep.residualNorm = rNorm;
     rep.converged = rNorm <= target;

@@ -304,18 +304,18 @@ void LpmSolve::finishWithGmres() {
     std::vector<double> binW(perVoxel_);
     for (size_t i = 0; i < perVoxel_; ++i)
         binW[i] = ff_->binWeight(int((i / (3 * M_)) % nb_)) * ((i / 3) % M_ == 0 ? 1.0 : 1.0 / 12);
-    // B takes next's storage, K v the previous pass's source (no longer needed).
+    // B takes next's storage; the previous pass's source is no longer needed. K v is
+    // deposited into A v's own storage, then A v = v - K v in place: no buffer for K v.
     const std::vector<float> B = std::move(next_);
-    std::vector<float> kv = std::move(unshot_);
-    kv.resize(len);
+    unshot_ = std::vector<float>();
     const LinearOperator A = [&](const std::vector<float>& v, std::vector<float>& outv) {  // A v = v - K v
         const auto tp = Clock::now();
-        std::fill(kv.begin(), kv.end(), 0.0f);
+        std::fill(outv.begin(), outv.end(), 0.0f);
         Tally t;
-        runner_->run(sourceJobs(v), r_, t, false, kv);
+        runner_->run(sourceJobs(v), r_, t, false, outv);
         recordPass(pass_++, t, tp, false);
         parallelForChunks(len, 1 << 16, [&](size_t b0, size_t e0) {
-            for (size_t i = b0; i < e0; ++i) outv[i] = v[i] - kv[i];
+            for (size_t i = b0; i < e0; ++i) outv[i] = v[i] - outv[i];
         });
     };
     // Krylov vectors are the big memory cost: cap their number by the memory budget.
@@ -331,8 +331,7 @@ void LpmSolve::finishWithGmres() {
         for (int c = 0; c < 3; ++c) X[i + c] = std::max(0.0f, X[i + c]);
     // Final physical pass: deposit S from the whole remaining sum.
     const auto tp = Clock::now();
-    next_ = std::move(kv);
-    std::fill(next_.begin(), next_.end(), 0.0f);
+    assignZeroed(next_, len);  // GMRES's vectors are freed by now
     addToSourceSum(X);
     Tally t;
     runner_->run(sourceJobs(X), r_, t, true, next_);

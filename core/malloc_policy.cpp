@@ -47,6 +47,12 @@ void adviseHeapOntoHugePages() {
 
 }  // namespace
 
+void returnFreedHeapPages() {
+#if defined(__GLIBC__)
+    malloc_trim(0);
+#endif
+}
+
 bool heapAdviceSupported() { return LPM_GLIBC_HEAP != 0; }
 
 void keepFreedBuffersForReuse() {

@@ -24,6 +24,12 @@ namespace lpm {
 /// 0.085 -> 0.055 s). Call once, before any thread starts; a no-op outside glibc.
 void keepFreedBuffersForReuse();
 
+/// Gives the heap's free pages back to the kernel (glibc's malloc_trim): for the points
+/// where the buffers kept for reuse will not be used again for a while and larger ones,
+/// mapped outside the heap, come next (the two-grid solve's coarse orders). A no-op
+/// outside glibc.
+void returnFreedHeapPages();
+
 /// Whether keepFreedBuffersForReuse advises the heap in this build (glibc on Linux, no
 /// sanitizer allocator).
 bool heapAdviceSupported();

@@ -144,6 +144,7 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
     for (; cycles < kCycles && p < s_.maxOrders; ++cycles) {
         runner_->releaseBuffers();  // and the bin source: the coarse solve is the peak
         sep_->binSource = std::vector<float>();
+        returnFreedHeapPages();
         const std::vector<float> tailCoarse =
             coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count);
         r.addToOffset(tailCoarse, 1.0f);  // r now holds E
