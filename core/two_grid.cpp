@@ -106,6 +106,7 @@ void LpmSolve::continueOnCoarse(int firstPass) {
     for (; cycles < kCycles && p < s_.maxOrders; ++cycles) {
         runner_->releaseBuffers();  // the coarse solve needs the memory more than the next fine pass its pages
         next_ = std::vector<float>();
+        returnFreedHeapPages();
         // The restricted source and the coarse result are freed before the fine pass.
         const std::vector<float> tailCoarse =
             coarseOrders(mc, cs, coarsePlan, restrictSource(m_, mc, r, nb_, M_), rPower, cycles, p, count);
