@@ -3,6 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
 #include <string>
 
 #include "core/math.h"
@@ -55,6 +58,38 @@ TEST(MallocPolicy, HeapBlocksAreAdvisedOntoHugePages) {
     keepFreedBuffersForReuse();
     std::vector<float> v(size_t(2) << 20);  // 8 MiB, below the 32 MiB mmap threshold
     EXPECT_EQ(thpEligible(v.data() + v.size() / 2), 1) << "THP mode " << modes;
+}
+
+size_t residentBytes() {
+    std::ifstream statm("/proc/self/statm");
+    size_t pages = 0, resident = 0;
+    statm >> pages >> resident;
+    return resident * 4096;
+}
+
+// Blocks below the mmap threshold stay resident when freed (kept for reuse) until
+// returnFreedHeapPages gives their pages back: what the two-grid solve does before its
+// coarse orders, whose buffers are mapped outside the heap.
+TEST(MallocPolicy, FreedHeapPagesGoBackWhenAsked) {
+    if (!heapAdviceSupported()) GTEST_SKIP() << "no glibc heap in this build (sanitizer allocator or not Linux)";
+    keepFreedBuffersForReuse();
+    constexpr size_t kBlock = size_t(8) << 20, kBlocks = 12;  // 96 MiB in blocks below the 32 MiB threshold
+    void* blocks[kBlocks];
+    for (void*& b : blocks) {
+        b = std::malloc(kBlock);
+        ASSERT_NE(b, nullptr);
+        std::memset(b, 1, kBlock);
+    }
+    void* guard = std::malloc(4096);  // keeps the blocks off the heap's top
+    const size_t touched = residentBytes();
+    for (void* b : blocks) std::free(b);
+    const size_t freed = residentBytes();
+    returnFreedHeapPages();
+    const size_t returned = residentBytes();
+    std::free(guard);
+    EXPECT_GT(freed + 64 * (size_t(1) << 20), touched) << "freed blocks left the heap without being asked";
+    EXPECT_LT(returned + 64 * (size_t(1) << 20), freed) << "resident " << (freed >> 20) << " -> " << (returned >> 20)
+                                                        << " MiB";
 }
 
 }  // namespace
