@@ -3,6 +3,7 @@
 
 #include <cmath>
 
+#include "core/malloc_policy.h"
 #include "core/parallel.h"
 
 namespace lpm {
@@ -57,12 +58,14 @@ GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, con
     const size_t len = B.size();
     GmresReport rep;
     rep.rhsNorm = std::sqrt(weightedDot(weights, B, B));
-    X.assign(len, 0.0f);
+    assignZeroed(X, len);  // X, w and the basis on huge pages: each is tens of MiB on a coarse grid
     // Full-length vectors alive in a cycle: X, w and the basis (B is the caller's). The
     // residual r starts each cycle as basis[0] (it is not needed again until the cycle's
     // end) and is formed in w's storage: no buffer of its own.
-    std::vector<float> w(len);
-    std::vector<std::vector<float>> basis(1, B);
+    std::vector<float> w;
+    assignZeroed(w, len);
+    std::vector<std::vector<float>> basis(1);
+    assignCopy(basis[0], B);
     double rNorm = rep.rhsNorm;
     while (rNorm > target && mayApply()) {
         basis.resize(1);
@@ -100,7 +103,8 @@ GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, con
                 ++k;
                 break;
             }
-            basis.push_back(w);
+            basis.emplace_back();
+            assignCopy(basis.back(), w);
             scale(basis.back(), hk1);
         }
         updateSolution(H, g, k, basis, X);

@@ -53,4 +53,18 @@ std::vector<T>& assignZeroed(std::vector<T>& v, std::size_t n) {
     return v;
 }
 
+/// v = src for a large buffer, into storage advised onto huge pages when v must grow.
+/// Returns v.
+template <class T>
+std::vector<T>& assignCopy(std::vector<T>& v, const std::vector<T>& src) {
+    if (v.capacity() < src.size()) {
+        std::vector<T> fresh;
+        fresh.reserve(src.size());
+        adviseHugePages(fresh.data(), src.size() * sizeof(T));
+        v.swap(fresh);
+    }
+    v.assign(src.begin(), src.end());
+    return v;
+}
+
 }  // namespace lpm

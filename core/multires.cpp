@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "core/malloc_policy.h"
 #include "core/parallel.h"
 
 namespace lpm {
@@ -54,7 +55,8 @@ Medium coarsen(const Medium& f) {
 std::vector<float> restrictSource(const Medium& f, const Medium& c, const std::vector<float>& src, int bins,
                                   int moments) {
     const size_t per = size_t(bins) * 3;
-    std::vector<float> out(c.voxelCount() * per, 0.0f);
+    std::vector<float> out;
+    assignZeroed(out, c.voxelCount() * per);
     parallelForChunks(size_t(c.nz), 1, [&](size_t zb, size_t ze) {
         std::vector<double> acc(per);
         for (int z = int(zb); z < int(ze); ++z)

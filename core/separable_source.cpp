@@ -39,15 +39,24 @@ FineCoarseMap::FineCoarseMap(const Medium& f, const Medium& c) {
     });
 }
 
+// Coarse buffers are tens of MiB: each is written into storage advised onto huge pages
+// (assignZeroed), where a plain copy or assign would fault it in 4 KiB at a time (about
+// 0.5 s of a plume-1M g = 0.6 bake went to those faults, docs/performance.md session 18).
 std::vector<float> SeparableSource::restricted() const {
-    std::vector<float> out = shape;
-    for (size_t i = 0; i < offset.size(); ++i) out[i] += offset[i];
+    std::vector<float> out;
+    assignZeroed(out, shape.size());
+    const float* off = offset.empty() ? nullptr : offset.data();
+    parallelForChunks(shape.size(), 1 << 16, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) out[i] = off ? shape[i] + off[i] : shape[i];
+    });
     return out;
 }
 
 void SeparableSource::addToOffset(const std::vector<float>& coarse, float scale) {
-    if (offset.empty()) offset.assign(shape.size(), 0.0f);
-    for (size_t i = 0; i < offset.size(); ++i) offset[i] += scale * coarse[i];
+    if (offset.empty()) assignZeroed(offset, shape.size());
+    parallelForChunks(offset.size(), 1 << 16, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) offset[i] += scale * coarse[i];
+    });
 }
 
 namespace {
@@ -80,13 +89,15 @@ void SeparableSource::fillBin(const FineCoarseMap& map, int bin, float* out) con
 
 double SeparableSource::power(const FineCoarseMap& map, const std::vector<double>& binWeight, const RGB& albedo,
                               double fineVoxelVolume) const {
-    const std::vector<float> r = restricted();
+    const float* off = offset.empty() ? nullptr : offset.data();
     double p = 0;
     for (size_t ci = 0; ci < map.sigmaSum.size(); ++ci)
         for (int d = 0; d < bins; ++d)
-            for (int c = 0; c < 3; ++c)
-                p += double(r[(ci * size_t(bins) + size_t(d)) * 3 + size_t(c)]) * map.sigmaSum[ci] * albedo[c] *
-                     binWeight[size_t(d)];
+            for (int c = 0; c < 3; ++c) {
+                const size_t i = (ci * size_t(bins) + size_t(d)) * 3 + size_t(c);
+                const float r = off ? shape[i] + off[i] : shape[i];  // restricted(), not materialised
+                p += double(r) * map.sigmaSum[ci] * albedo[c] * binWeight[size_t(d)];
+            }
     return p * fineVoxelVolume / 3.0;
 }
 
