@@ -105,8 +105,9 @@ void LpmSolve::continueOnCoarse(int firstPass) {
     double rPower = res_.passes.back().scattered;
     for (; cycles < kCycles && p < s_.maxOrders; ++cycles) {
         runner_->releaseBuffers();  // the coarse solve needs the memory more than the next fine pass its pages
+        // The heap's free pages stay (unlike the separable cycle's): giving them back saved
+        // 0-15 MiB here for 8k more page faults (docs/performance.md, session 18).
         next_ = std::vector<float>();
-        returnFreedHeapPages();
         // The restricted source and the coarse result are freed before the fine pass.
         const std::vector<float> tailCoarse =
             coarseOrders(mc, cs, coarsePlan, restrictSource(m_, mc, r, nb_, M_), rPower, cycles, p, count);
