@@ -88,8 +88,8 @@ TEST(MallocPolicy, FreedHeapPagesGoBackWhenAsked) {
     const size_t returned = residentBytes();
     std::free(guard);
     EXPECT_GT(freed + 64 * (size_t(1) << 20), touched) << "freed blocks left the heap without being asked";
-    EXPECT_LT(returned + 64 * (size_t(1) << 20), freed) << "resident " << (freed >> 20) << " -> " << (returned >> 20)
-                                                        << " MiB";
+    EXPECT_LT(returned + 64 * (size_t(1) << 20), freed)
+        << "resident " << (freed >> 20) << " -> " << (returned >> 20) << " MiB";
 }
 
 }  // namespace
