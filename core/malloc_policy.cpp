@@ -48,7 +48,7 @@ void adviseHeapOntoHugePages() {
 }  // namespace
 
 void returnFreedHeapPages() {
-#if defined(__GLIBC__)
+#if LPM_GLIBC_HEAP  // a sanitizer's allocator keeps its own pools
     malloc_trim(0);
 #endif
 }
