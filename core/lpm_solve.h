@@ -23,7 +23,8 @@ class LpmSolve {
 public:
     /// `initialSource`: null for the external-light problem; for the coarse continuation of
     /// a two-grid solve, the restricted unshot [voxel][bin][rgb] that replaces pass 0 (taken
-    /// over: with a voxel-constant source it becomes the first source without a copy).
+    /// over: with a voxel-constant source it becomes the first source without a copy); such
+    /// a solve returns its source sum and no SH result (`sh` stays empty).
     LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, const SolvePlan& plan,
              std::shared_ptr<LpmCache> cache, std::vector<float>* initialSource);
     LpmResult run();
@@ -86,6 +87,7 @@ private:
     float tailFactor_ = 1.0f;        ///< next's weight in the source sum: 1, or 1/(1 - rho) when extrapolated
     double extrapolatedError_ = -1;  ///< the extrapolation's estimated error (power), when it stopped the solve
     bool continuedOnCoarse_ = false;
+    bool depositSh_ = true;  ///< false in a coarse continuation (only its source sum is used)
 };
 
 }  // namespace lpm

@@ -108,7 +108,10 @@ LpmSolve::LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, 
     res_.directionCount = quad_.count();
     res_.binCount = nb_;
     res_.decisions = plan.lines();
-    assignZeroed(res_.sh, N_ * nc_ * 3);
+    // A coarse continuation hands back only its source sum (its plan has SH order 0, "no
+    // SH"): its band-0 result, 12 B per coarse voxel, is neither allocated nor folded.
+    depositSh_ = initialSource_ == nullptr;
+    if (depositSh_) assignZeroed(res_.sh, N_ * nc_ * 3);
     // Linear source: voxels thicker than linearSourceVoxelCap keep a constant source. In
     // them the fitted slope approaches its bound 6 U0 (all light deposited at one face), the
     // linear profile goes strongly negative and the iteration loses accuracy (white furnace
@@ -289,7 +292,7 @@ bool LpmSolve::iterate() {
             std::swap(unshot_, next_);
             assignZeroed(next_, perVoxel_ * N_);
             if (pass_ > 1 || !initialSource_) addToSourceSum(unshot_);  // not the initial source
-            runner_->run(sourceJobs(unshot_), r_, t, true, next_);
+            runner_->run(sourceJobs(unshot_), r_, t, depositSh_, next_);
         }
         recordPass(pass_, t, tp);
     }
@@ -334,7 +337,7 @@ void LpmSolve::finishWithGmres() {
     assignZeroed(next_, len);  // GMRES's vectors are freed by now
     addToSourceSum(X);
     Tally t;
-    runner_->run(sourceJobs(X), r_, t, true, next_);
+    runner_->run(sourceJobs(X), r_, t, depositSh_, next_);
     recordPass(pass_, t, tp);
     // Unshot: the source power that X fails to account for, |B + K X - X| (radiance per
     // bin) times sigma_s V w_d, mean over RGB.
@@ -360,7 +363,7 @@ void LpmSolve::finishWithGmres() {
 // zero and reported.
 void LpmSolve::clampNegativeLinear() {
     size_t clamped = 0;
-    for (size_t x = 0; x < N_; ++x)
+    for (size_t x = 0; depositSh_ && x < N_; ++x)
         for (int c = 0; c < 3; ++c)
             if (res_.sh[x * nc_ * 3 + c] < 0) {
                 res_.sh[x * nc_ * 3 + c] = 0;

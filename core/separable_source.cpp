@@ -59,6 +59,13 @@ void SeparableSource::addToOffset(const std::vector<float>& coarse, float scale)
     });
 }
 
+void SeparableSource::setNegatedOffset(std::vector<float>&& coarse) {
+    offset = std::move(coarse);
+    parallelForChunks(offset.size(), 1 << 16, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) offset[i] = 0.0f - offset[i];  // as 0 + (-1) P: +0 stays +0
+    });
+}
+
 namespace {
 
 /// Fine voxels [vb, ve) of fillBin: U_f(bin) from the parent's row (see the file comment).

@@ -53,6 +53,8 @@ struct SeparableSource {
     std::vector<float> restricted() const;
     /// P_C += scale * coarse ([coarse voxel][bin][rgb]).
     void addToOffset(const std::vector<float>& coarse, float scale);
+    /// P_C = -coarse, in coarse's storage (what addToOffset(coarse, -1) gives from no offset).
+    void setNegatedOffset(std::vector<float>&& coarse);
     /// out [fine voxel][rgb] = U_f(bin), 0 for voxels outside the block.
     void fillBin(const FineCoarseMap& map, int bin, float* out) const;
     /// Source power sum_f sigma_s U_f(d) w_d V, mean over RGB (as LpmSolve::sourcePower).

@@ -147,15 +147,20 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         runner_->releaseBuffers();  // and the bin source: the coarse solve is the peak
         sep_->binSource = std::vector<float>();
         returnFreedHeapPages();
-        const std::vector<float> tailCoarse =
-            coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count);
-        r.addToOffset(tailCoarse, 1.0f);  // r now holds E
+        std::vector<float> tailCoarse = coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count);
+        // The first cycle's r has no offset: E's is the tail itself (not a copy of it: one
+        // coarse buffer of bins fewer through the fine pass) and r''s its negation.
+        const bool tailIsOffset = r.offset.empty();
+        if (tailIsOffset) r.offset = std::move(tailCoarse);
+        else r.addToOffset(tailCoarse, 1.0f);  // r now holds E
         const auto tf = Clock::now();
         Tally t;
         runSeparablePass(&r, t);
         recordPass(p++, t, tf);
-        r = std::move(sep_->next);         // K E
-        r.addToOffset(tailCoarse, -1.0f);  // r' = K E - tail
+        std::vector<float> offsetE = std::move(r.offset);
+        r = std::move(sep_->next);  // K E
+        if (tailIsOffset) r.setNegatedOffset(std::move(offsetE));
+        else r.addToOffset(tailCoarse, -1.0f);  // r' = K E - tail
         rPower = r.power(sep_->map, sep_->binWeight, m_.albedo, V_);
         res_.passes.back().scattered = std::fabs(rPower);
         if (std::fabs(rPower) <= s_.tolerance * res_.injected) {

@@ -221,6 +221,24 @@ TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
     EXPECT_NEAR(s.power(map, w, albedo, f.voxelVolume()), want, 1e-5 * std::fabs(want));
 }
 
+// The two-grid cycle's first residual takes the tail's storage as its offset, negated:
+// the same floats as adding it with scale -1 to no offset, and the tail is not copied.
+TEST(SeparableSource, NegatedOffsetIsAddToOffsetOfMinusOneInTheTailsStorage) {
+    std::vector<float> tail = {0.0f, 1.5f, -2.25f, 3e-30f, -7.0f, 1e30f};
+    SeparableSource added, moved;
+    added.shape.assign(tail.size(), 1.0f);
+    moved.shape = added.shape;
+    added.addToOffset(tail, -1.0f);
+    const float* storage = tail.data();
+    moved.setNegatedOffset(std::move(tail));
+    EXPECT_EQ(moved.offset.data(), storage);
+    ASSERT_EQ(moved.offset.size(), added.offset.size());
+    for (size_t i = 0; i < added.offset.size(); ++i) {
+        EXPECT_EQ(moved.offset[i], added.offset[i]) << i;
+        EXPECT_EQ(std::signbit(moved.offset[i]), std::signbit(added.offset[i])) << i;
+    }
+}
+
 // A bake with separable fine sources (auto with unshot bins and the two-grid solve) keeps
 // the energy balance, is the same for 1 and 2 threads, and stays within 0.25% band-0 RMS of
 // the full sources (the expensive path) against Monte Carlo on a heterogeneous plume (sky
