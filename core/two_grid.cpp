@@ -151,8 +151,8 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         // The first cycle's r has no offset: E's is the tail itself (not a copy of it: one
         // coarse buffer of bins fewer through the fine pass) and r''s its negation.
         const bool tailIsOffset = r.offset.empty();
-        if (tailIsOffset) r.offset = std::move(tailCoarse);
-        else r.addToOffset(tailCoarse, 1.0f);  // r now holds E
+        if (tailIsOffset) r.offset.swap(tailCoarse);  // tailCoarse is left empty
+        else r.addToOffset(tailCoarse, 1.0f);         // r now holds E
         const auto tf = Clock::now();
         Tally t;
         runSeparablePass(&r, t);
