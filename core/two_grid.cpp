@@ -157,9 +157,9 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         Tally t;
         runSeparablePass(&r, t);
         recordPass(p++, t, tf);
-        std::vector<float> offsetE = std::move(r.offset);
-        r = std::move(sep_->next);  // K E
-        if (tailIsOffset) r.setNegatedOffset(std::move(offsetE));
+        if (tailIsOffset) tailCoarse.swap(r.offset);  // back from E before E is freed
+        r = std::move(sep_->next);                    // K E
+        if (tailIsOffset) r.setNegatedOffset(std::move(tailCoarse));
         else r.addToOffset(tailCoarse, -1.0f);  // r' = K E - tail
         rPower = r.power(sep_->map, sep_->binWeight, m_.albedo, V_);
         res_.passes.back().scattered = std::fabs(rPower);
