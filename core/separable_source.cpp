@@ -45,25 +45,16 @@ FineCoarseMap::FineCoarseMap(const Medium& f, const Medium& c) {
 std::vector<float> SeparableSource::restricted() const {
     std::vector<float> out;
     assignZeroed(out, shape.size());
-    const float* off = offset.empty() ? nullptr : offset.data();
     parallelForChunks(shape.size(), 1 << 16, [&](size_t b, size_t e) {
-        for (size_t i = b; i < e; ++i) out[i] = off ? shape[i] + off[i] : shape[i];
+        for (size_t i = b; i < e; ++i) out[i] = offset.empty() ? shape[i] : shape[i] + offsetAt(i);
     });
     return out;
 }
 
-void SeparableSource::addToOffset(const std::vector<float>& coarse, float scale) {
-    if (offset.empty()) assignZeroed(offset, shape.size());
-    parallelForChunks(offset.size(), 1 << 16, [&](size_t b, size_t e) {
-        for (size_t i = b; i < e; ++i) offset[i] += scale * coarse[i];
-    });
-}
-
-void SeparableSource::setNegatedOffset(std::vector<float>&& coarse) {
-    offset = std::move(coarse);
-    parallelForChunks(offset.size(), 1 << 16, [&](size_t b, size_t e) {
-        for (size_t i = b; i < e; ++i) offset[i] = 0.0f - offset[i];  // as 0 + (-1) P: +0 stays +0
-    });
+float SeparableSource::offsetAt(size_t i) const {
+    float p = 0;
+    for (const HalfBuffer& part : offset) p += part.at(i);
+    return p;
 }
 
 namespace {
@@ -72,7 +63,7 @@ namespace {
 LPM_SIMD_CLONES
 void fillBinRange(size_t vb, size_t ve, const SeparableSource& u, const std::uint32_t* parent, int bin, float* out) {
     const size_t nb = size_t(u.bins);
-    const float* off = u.offset.empty() ? nullptr : u.offset.data();
+    const float* off = u.offset.empty() ? nullptr : u.offsetOfBin.data();  // [coarse voxel][rgb]
     for (size_t v = vb; v < ve; ++v) {
         const std::uint32_t p = parent[v];
         for (int c = 0; c < 3; ++c) {
@@ -82,7 +73,7 @@ void fillBinRange(size_t vb, size_t ve, const SeparableSource& u, const std::uin
             }
             const size_t i = (p * nb + size_t(bin)) * 3 + size_t(c), pc = size_t(p) * 3 + size_t(c);
             const float s = u.invAbs[pc] > 0 ? std::fabs(u.shape[i]) * u.invAbs[pc] : u.invWeight;
-            out[v * 3 + c] = u.shape[i] + (u.magnitude[v * 3 + c] - u.norm[pc]) * s + (off ? off[i] : 0.0f);
+            out[v * 3 + c] = u.shape[i] + (u.magnitude[v * 3 + c] - u.norm[pc]) * s + (off ? off[pc] : 0.0f);
         }
     }
 }
@@ -90,19 +81,26 @@ void fillBinRange(size_t vb, size_t ve, const SeparableSource& u, const std::uin
 }  // namespace
 
 void SeparableSource::fillBin(const FineCoarseMap& map, int bin, float* out) const {
+    if (!offset.empty()) {
+        const size_t coarseVoxels = map.sigmaSum.size(), nb = size_t(bins);
+        if (offsetOfBin.size() != coarseVoxels * 3) assignZeroed(offsetOfBin, coarseVoxels * 3);
+        parallelForChunks(coarseVoxels, 1 << 12, [&](size_t cb, size_t ce) {
+            for (size_t ci = cb; ci < ce; ++ci)
+                for (size_t c = 0; c < 3; ++c) offsetOfBin[ci * 3 + c] = offsetAt((ci * nb + size_t(bin)) * 3 + c);
+        });
+    }
     parallelForChunks(map.parent.size(), 1 << 14,
                       [&](size_t vb, size_t ve) { fillBinRange(vb, ve, *this, map.parent.data(), bin, out); });
 }
 
 double SeparableSource::power(const FineCoarseMap& map, const std::vector<double>& binWeight, const RGB& albedo,
                               double fineVoxelVolume) const {
-    const float* off = offset.empty() ? nullptr : offset.data();
     double p = 0;
     for (size_t ci = 0; ci < map.sigmaSum.size(); ++ci)
         for (int d = 0; d < bins; ++d)
             for (int c = 0; c < 3; ++c) {
                 const size_t i = (ci * size_t(bins) + size_t(d)) * 3 + size_t(c);
-                const float r = off ? shape[i] + off[i] : shape[i];  // restricted(), not materialised
+                const float r = offset.empty() ? shape[i] : shape[i] + offsetAt(i);  // restricted(), not materialised
                 p += double(r) * map.sigmaSum[ci] * albedo[c] * binWeight[size_t(d)];
             }
     return p * fineVoxelVolume / 3.0;

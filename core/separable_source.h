@@ -10,7 +10,8 @@
 // R_C = 0): where R_C has one sign in every bin this is m_f R_C(d) / |R_C|, and it stays
 // linear in m_f where it has not (the two-grid cycle's residuals change sign; a division
 // by |R_C| there lost their sources and stalled the cycle at albedo 0.99).
-// P_C is a piecewise-constant part (the two-grid cycle's coarse tail). Exact: every fine
+// P_C is a piecewise-constant part (the two-grid cycle's coarse tails), held as the sum of
+// at most two half-precision buffers (core/half_buffer.h). Exact: every fine
 // voxel's angular integral, and the sigma-weighted restriction (so the source power of
 // every coarse voxel in every bin). Approximate: how the angular shape varies among the
 // 8 children of a coarse voxel.
@@ -19,6 +20,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/half_buffer.h"
 #include "core/medium.h"
 
 namespace lpm {
@@ -46,20 +48,23 @@ struct SeparableSource {
     std::vector<float> norm;       ///< |R_C| [coarse voxel][rgb] (signed)
     std::vector<float> invAbs;     ///< 1 / sum_d w_d |R_C(d)| [coarse voxel][rgb], 0 where R_C = 0
     float invWeight = 0;           ///< 1 / sum_d w_d: the isotropic shape
-    std::vector<float> offset;     ///< P_C [coarse voxel][bin][rgb]; empty: 0
+    /// P_C [coarse voxel][bin][rgb], the sum of these parts (none: 0). Their sum is formed
+    /// one bin at a time (fillBin), never as a coarse buffer of floats.
+    std::vector<HalfBuffer> offset;
 
     /// The source restricted to the coarse grid, R_C + P_C [coarse voxel][bin][rgb] (what
     /// restrictSource gives for the full source).
     std::vector<float> restricted() const;
-    /// P_C += scale * coarse ([coarse voxel][bin][rgb]).
-    void addToOffset(const std::vector<float>& coarse, float scale);
-    /// P_C = -coarse, in coarse's storage (what addToOffset(coarse, -1) gives from no offset).
-    void setNegatedOffset(std::vector<float>&& coarse);
-    /// out [fine voxel][rgb] = U_f(bin), 0 for voxels outside the block.
+    /// P_C of voxel-bin-channel index i, [coarse voxel][bin][rgb].
+    float offsetAt(size_t i) const;
+    /// out [fine voxel][rgb] = U_f(bin), 0 for voxels outside the block. Not reentrant: it
+    /// sums the offset's parts for the bin into offsetOfBin.
     void fillBin(const FineCoarseMap& map, int bin, float* out) const;
     /// Source power sum_f sigma_s U_f(d) w_d V, mean over RGB (as LpmSolve::sourcePower).
     double power(const FineCoarseMap& map, const std::vector<double>& binWeight, const RGB& albedo,
                  double fineVoxelVolume) const;
+
+    mutable std::vector<float> offsetOfBin;  ///< fillBin's P_C(bin) [coarse voxel][rgb]
 };
 
 /// Folds a pass's per-direction deposits into the SH result and a separable next source:

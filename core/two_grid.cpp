@@ -130,8 +130,8 @@ void LpmSolve::continueOnCoarse(int firstPass) {
 }
 
 // The same cycle with separable fine sources (core/separable_source.h): r, E and K E are
-// held separably, so no fine buffer of bins is ever allocated; the tail is the separable
-// form's coarse offset.
+// held separably, so no fine buffer of bins is ever allocated; the tail is a part of the
+// separable form's coarse offset (r's offset is the previous tail, negated).
 void LpmSolve::continueOnCoarseSeparable(int firstPass) {
     constexpr int kCycles = 3;
     const auto tp = Clock::now();
@@ -147,20 +147,18 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         runner_->releaseBuffers();  // and the bin source: the coarse solve is the peak
         sep_->binSource = std::vector<float>();
         returnFreedHeapPages();
-        std::vector<float> tailCoarse = coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count);
-        // The first cycle's r has no offset: E's is the tail itself (not a copy of it: one
-        // coarse buffer of bins fewer through the fine pass) and r''s its negation.
-        const bool tailIsOffset = r.offset.empty();
-        if (tailIsOffset) r.offset.swap(tailCoarse);  // tailCoarse is left empty
-        else r.addToOffset(tailCoarse, 1.0f);         // r now holds E
+        // E = r + tail. The tail is held in half precision (core/half_buffer.h): the same
+        // rounded tail is added to E and taken from r', so the rounding moves no energy.
+        r.offset.push_back(
+            HalfBuffer::encode(coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count)));
         const auto tf = Clock::now();
         Tally t;
         runSeparablePass(&r, t);
         recordPass(p++, t, tf);
-        if (tailIsOffset) tailCoarse.swap(r.offset);  // back from E before E is freed
-        r = std::move(sep_->next);                    // K E
-        if (tailIsOffset) r.setNegatedOffset(std::move(tailCoarse));
-        else r.addToOffset(tailCoarse, -1.0f);  // r' = K E - tail
+        HalfBuffer tail = std::move(r.offset.back());
+        r = std::move(sep_->next);  // K E (no offset)
+        tail.negate();
+        r.offset.push_back(std::move(tail));  // r' = K E - tail
         rPower = r.power(sep_->map, sep_->binWeight, m_.albedo, V_);
         res_.passes.back().scattered = std::fabs(rPower);
         if (std::fabs(rPower) <= s_.tolerance * res_.injected) {
