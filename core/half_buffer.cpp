@@ -35,7 +35,7 @@ std::uint16_t halfFromFloat(float x) {
     std::uint32_t h;
     if (f >= 0x47800000u) {  // |x| >= 65536, infinity or NaN
         h = f > 0x7f800000u ? 0x7e00u : 0x7c00u;
-    } else if (f < 0x38800000u) {  // |x| < 2^-14: subnormal or zero; the FPU's addition rounds
+    } else if (f < 0x38800000u) {                 // |x| < 2^-14: subnormal or zero; the FPU's addition rounds
         const float magic = floatOf(126u << 23);  // 0.5: ulp 2^-24, the subnormal step
         h = bitsOf(floatOf(f) + magic) - bitsOf(magic);
     } else {  // normal: rebias the exponent, round the 13 dropped bits to nearest even

@@ -55,18 +55,19 @@ TEST(HalfBuffer, EveryHalfDecodesExactlyAndComesBack) {
 TEST(HalfBuffer, FloatsRoundToTheNearestHalfTiesToEven) {
     Pcg32 rng(3, 5);
     for (int k = 0; k < 200000; ++k) {
-        const float x = float((rng.uniform() < 0.5 ? -1.0 : 1.0) * std::ldexp(1.0 + rng.uniform(), int(rng.uniform() * 45) - 28));
+        const float x =
+            float((rng.uniform() < 0.5 ? -1.0 : 1.0) * std::ldexp(1.0 + rng.uniform(), int(rng.uniform() * 45) - 28));
         if (std::fabs(x) >= 65520.0f) continue;
         ASSERT_TRUE(isNearestEven(x, halfFromFloat(x))) << x;
     }
     // Exact ties: halfway between neighbours, in the normal and the subnormal range.
-    EXPECT_EQ(halfFromFloat(1.0f + 1.0f / 2048), 0x3c00u);              // tie to even (down)
-    EXPECT_EQ(halfFromFloat(1.0f + 3.0f / 2048), 0x3c02u);              // tie to even (up)
-    EXPECT_EQ(halfFromFloat(std::ldexp(1.0f, -25)), 0x0000u);           // half the smallest subnormal
-    EXPECT_EQ(halfFromFloat(std::ldexp(3.0f, -25)), 0x0002u);           // 1.5 subnormal steps
-    EXPECT_EQ(halfFromFloat(65504.0f), 0x7bffu);                         // the largest half
-    EXPECT_EQ(halfFromFloat(65519.0f), 0x7bffu);                         // below the rounding limit
-    EXPECT_EQ(halfFromFloat(65520.0f), 0x7c00u);                         // a tie that rounds to infinity
+    EXPECT_EQ(halfFromFloat(1.0f + 1.0f / 2048), 0x3c00u);     // tie to even (down)
+    EXPECT_EQ(halfFromFloat(1.0f + 3.0f / 2048), 0x3c02u);     // tie to even (up)
+    EXPECT_EQ(halfFromFloat(std::ldexp(1.0f, -25)), 0x0000u);  // half the smallest subnormal
+    EXPECT_EQ(halfFromFloat(std::ldexp(3.0f, -25)), 0x0002u);  // 1.5 subnormal steps
+    EXPECT_EQ(halfFromFloat(65504.0f), 0x7bffu);               // the largest half
+    EXPECT_EQ(halfFromFloat(65519.0f), 0x7bffu);               // below the rounding limit
+    EXPECT_EQ(halfFromFloat(65520.0f), 0x7c00u);               // a tie that rounds to infinity
     EXPECT_EQ(halfFromFloat(-1e30f), 0xfc00u);
     EXPECT_TRUE(std::isnan(floatFromHalf(halfFromFloat(std::numeric_limits<float>::quiet_NaN()))));
 }
@@ -79,7 +80,8 @@ TEST(HalfBuffer, ScaledBufferKeepsRelativePrecisionAtAnyMagnitude) {
         SCOPED_TRACE(magnitude);
         Pcg32 rng(11, 2);
         std::vector<float> x(5000);
-        for (float& v : x) v = magnitude * float(rng.uniform() - 0.4) * float(std::ldexp(1.0, -int(rng.uniform() * 20)));
+        for (float& v : x)
+            v = magnitude * float(rng.uniform() - 0.4) * float(std::ldexp(1.0, -int(rng.uniform() * 20)));
         x[0] = magnitude;
         x[1] = 0.0f;
         HalfBuffer h = HalfBuffer::encode(x);
@@ -88,8 +90,7 @@ TEST(HalfBuffer, ScaledBufferKeepsRelativePrecisionAtAnyMagnitude) {
         EXPECT_LT(magnitude / h.scale, 32768.0f);
         ASSERT_EQ(h.size(), x.size());
         for (size_t i = 0; i < x.size(); ++i)
-            ASSERT_LE(std::fabs(h.at(i) - x[i]),
-                      std::max(std::ldexp(std::fabs(x[i]), -11), std::ldexp(h.scale, -25)))
+            ASSERT_LE(std::fabs(h.at(i) - x[i]), std::max(std::ldexp(std::fabs(x[i]), -11), std::ldexp(h.scale, -25)))
                 << i;
         EXPECT_EQ(h.at(1), 0.0f);
         HalfBuffer negated = h;
