@@ -1,6 +1,7 @@
 // Half-precision coarse buffers (core/half_buffer.h). The conversions are the bit-exact
 // branch-light forms of F. Giesen's "float->half variants" (round to nearest even) and
-// "half to float", portable to any compiler (Debian's clang 14 has no _Float16 on x86).
+// "half to float" (inline in the header), portable to any compiler (Debian's clang 14 has
+// no _Float16 on x86).
 #include "core/half_buffer.h"
 
 #include <algorithm>
@@ -44,22 +45,6 @@ std::uint16_t halfFromFloat(float x) {
         h = f >> 13;  // a carry into exponent 31 is infinity, as it should be
     }
     return std::uint16_t(h | (sign >> 16));
-}
-
-float floatFromHalf(std::uint16_t h) {
-    constexpr std::uint32_t kShiftedExponent = 0x7c00u << 13;
-    std::uint32_t u = (std::uint32_t(h) & 0x7fffu) << 13;
-    const std::uint32_t exponent = u & kShiftedExponent;
-    u += std::uint32_t(127 - 15) << 23;
-    float x;
-    if (exponent == kShiftedExponent) {  // infinity or NaN
-        x = floatOf(u + (std::uint32_t(128 - 16) << 23));
-    } else if (exponent == 0) {  // zero or subnormal: renormalise by the FPU
-        x = floatOf(u + (1u << 23)) - floatOf(113u << 23);
-    } else {
-        x = floatOf(u);
-    }
-    return (h & 0x8000u) ? -x : x;
 }
 
 HalfBuffer HalfBuffer::encode(const std::vector<float>& x) {

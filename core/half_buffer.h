@@ -12,14 +12,35 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 namespace lpm {
 
 /// Nearest binary16 to x (ties to even); beyond 65504 infinity, NaN stays NaN.
 std::uint16_t halfFromFloat(float x);
-/// The binary16 value `h` as a float (exact).
-float floatFromHalf(std::uint16_t h);
+/// The binary16 value `h` as a float (exact). Inline and branch-free (selects, not jumps),
+/// so loops over a buffer vectorize: GMRES's Krylov basis is decoded in its inner products.
+inline float floatFromHalf(std::uint16_t h) {
+    constexpr std::uint32_t kShiftedExponent = 0x7c00u << 13;
+    const std::uint32_t shifted = (std::uint32_t(h) & 0x7fffu) << 13;
+    const std::uint32_t exponent = shifted & kShiftedExponent;
+    // Rebias the exponent (15 -> 127); infinity and NaN go on to float's largest exponent.
+    const std::uint32_t normal =
+        shifted + (std::uint32_t(127 - 15) << 23) + (exponent == kShiftedExponent ? std::uint32_t(128 - 16) << 23 : 0u);
+    // Zero and subnormals: renormalised by the FPU, (2^-14 + m 2^-24) - 2^-14.
+    float renormalised, offset, x;
+    const std::uint32_t subnormalBits = normal + (1u << 23), offsetBits = 113u << 23;
+    std::memcpy(&renormalised, &subnormalBits, sizeof x);
+    std::memcpy(&offset, &offsetBits, sizeof x);
+    std::memcpy(&x, &normal, sizeof x);
+    x = exponent == 0 ? renormalised - offset : x;
+    std::uint32_t bits;
+    std::memcpy(&bits, &x, sizeof bits);
+    bits |= (std::uint32_t(h) & 0x8000u) << 16;
+    std::memcpy(&x, &bits, sizeof x);
+    return x;
+}
 
 struct HalfBuffer {
     std::vector<std::uint16_t> bits;

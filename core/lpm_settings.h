@@ -31,9 +31,9 @@ struct LpmSettings {
     int krylovAfter = 25;       ///< switch when plain iteration would need more than this many passes
     int coarseKrylovAfter = 8;  ///< the same on the multi-resolution coarse grid (its passes are cheap)
     int krylovRestart = 40;     ///< GMRES restart length (capped by krylovBytes, at least 4)
-    double krylovBytes = double(std::size_t(2) << 30);  ///< memory GMRES's Krylov vectors may take (the
-                                                        ///< two-grid solve gives its coarse grid 128 B
-                                                        ///< per fine stored voxel)
+    double krylovBytes = double(std::size_t(2) << 30);  ///< memory GMRES's Krylov vectors may take, in
+                                                        ///< half precision (the two-grid solve gives its
+                                                        ///< coarse grid 64 B per fine stored voxel)
     bool coarseTailExtrapolation = true;  ///< the two-grid coarse solve stops early where its passes decay
                                           ///< geometrically and adds the rest as that series
                                           ///< (docs/multires.md, "Geometric tail")

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 
 #include "core/delta_m.h"
@@ -321,8 +322,9 @@ void LpmSolve::finishWithGmres() {
             for (size_t i = b0; i < e0; ++i) outv[i] = v[i] - outv[i];
         });
     };
-    // Krylov vectors are the big memory cost: cap their number by the memory budget.
-    const size_t vecBytes = len * sizeof(float);
+    // Krylov vectors are the big memory cost: cap their number by the memory budget. They
+    // are held in half precision (core/gmres.h).
+    const size_t vecBytes = len * sizeof(std::uint16_t);
     const int restart = int(std::clamp<size_t>(size_t(s_.krylovBytes / double(std::max<size_t>(1, vecBytes))), 4,
                                                size_t(std::max(4, s_.krylovRestart))));
     const double bNorm = std::sqrt(weightedDot(binW, B, B));

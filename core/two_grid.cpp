@@ -32,11 +32,12 @@ LpmSettings coarseSettings(const LpmSettings& s, const SolvePlan& plan, const st
     cs.binsPerFace = plan.binsPerFace;
     cs.raysPerVoxel = cs.raysHigherOrders = plan.raysHigher;
     cs.krylovAfter = std::min(s.krylovAfter, s.coarseKrylovAfter);
-    // Its Krylov vectors: 128 B per fine stored voxel (issue 9's budget is 300 B per active
-    // voxel). With one unshot bin that is 40 vectors, with 24 bins (288 B per coarse voxel)
-    // the minimum of 4: the 1M-voxel cumulus at g = 0.6, albedo 0.99 peaked at 2839 MiB
-    // with 29 (the former flat 2 GiB) and at 1315 MiB with 4, in 39 s against 41 s.
-    cs.krylovBytes = std::min(s.krylovBytes, 128.0 * double(fineStoredVoxels));
+    // Its Krylov vectors (half precision): 64 B per fine stored voxel (issue 9's budget is
+    // 300 B per active voxel). With one unshot bin that is 40 vectors, with 24 bins (144 B
+    // per coarse voxel) the minimum of 4: the 1M-voxel cumulus at g = 0.6, albedo 0.99
+    // peaked at 2839 MiB with 29 float vectors (the former flat 2 GiB) and at 1315 MiB with
+    // 4, in 39 s against 41 s.
+    cs.krylovBytes = std::min(s.krylovBytes, 64.0 * double(fineStoredVoxels));
     cs.directionsPerFace = plan.coarseDirectionsPerFace;
     cs.sunTerms = false;
     cs.validate();
