@@ -6,55 +6,108 @@
 #include "core/half_buffer.h"
 #include "core/malloc_policy.h"
 #include "core/parallel.h"
+#include "core/simd_clones.h"
 
 namespace lpm {
 
 namespace {
 
 constexpr size_t kChunk = size_t(1) << 16;
+constexpr size_t kLanes = 8;  // a chunk's dot product: 8 partial sums, lane i % 8 (vectorizes)
 
-/// <a, b>_w in fixed chunks, b(i) read through `second` (a float or a half buffer).
+/// The weights w_(i mod P) written out to a length that is a multiple of both P and
+/// kLanes, so a run of kLanes elements starting at a multiple of kLanes reads contiguous
+/// weights.
+std::vector<double> lanedWeights(const std::vector<double>& w) {
+    size_t length = w.size();
+    while (length % kLanes) length += w.size();
+    std::vector<double> out(length);
+    for (size_t i = 0; i < length; ++i) out[i] = w[i % w.size()];
+    return out;
+}
+
+/// acc[i % kLanes] += wx[i mod |wx|] a_i second(i) for i in [b0, e0), b0 a multiple of kLanes.
 template <class Second>
-double chunkedWeightedDot(const std::vector<double>& w, const std::vector<float>& a, const Second& second) {
-    const size_t len = a.size();
+inline void addLaneProducts(const std::vector<double>& wx, const float* a, Second second, size_t b0, size_t e0,
+                            double* acc) {
+    size_t j = b0 % wx.size(), i = b0;
+    for (; i + kLanes <= e0; i += kLanes) {
+        for (size_t l = 0; l < kLanes; ++l) acc[l] += wx[j + l] * double(a[i + l]) * double(second(i + l));
+        j += kLanes;
+        if (j == wx.size()) j = 0;
+    }
+    for (size_t l = 0; i < e0; ++i, ++l) acc[l] += wx[j + l] * double(a[i]) * double(second(i));
+}
+
+LPM_SIMD_CLONES
+void laneProductsFloat(const std::vector<double>& wx, const float* a, const float* b, size_t b0, size_t e0,
+                       double* acc) {
+    addLaneProducts(wx, a, [b](size_t i) { return b[i]; }, b0, e0, acc);
+}
+
+LPM_SIMD_CLONES
+void laneProductsHalf(const std::vector<double>& wx, const float* a, const std::uint16_t* b, size_t b0, size_t e0,
+                      double* acc) {
+    addLaneProducts(wx, a, [b](size_t i) { return floatFromHalf(b[i]); }, b0, e0, acc);
+}
+
+/// <a, b>_w (b read by `chunkProducts`): lane sums per chunk, chunks summed in order, so
+/// the result depends neither on the thread count nor on how the weights' period is written.
+template <class ChunkProducts>
+double chunkedDot(size_t len, const ChunkProducts& chunkProducts) {
     std::vector<double> part((len + kChunk - 1) / kChunk, 0.0);
     parallelForChunks(len, kChunk, [&](size_t b0, size_t e0) {
-        double acc = 0;
-        const size_t period = w.size();
-        for (size_t i = b0, j = b0 % period; i < e0; ++i) {
-            acc += w[j] * double(a[i]) * double(second(i));
-            if (++j == period) j = 0;
-        }
-        part[b0 / kChunk] = acc;
+        double acc[kLanes] = {};
+        chunkProducts(b0, e0, acc);
+        double sum = 0;
+        for (double lane : acc) sum += lane;
+        part[b0 / kChunk] = sum;
     });
     double sum = 0;
     for (double v : part) sum += v;
     return sum;
 }
 
-double weightedDotHalf(const std::vector<double>& w, const std::vector<float>& a, const HalfBuffer& b) {
-    const std::uint16_t* bits = b.bits.data();
-    return double(b.scale) * chunkedWeightedDot(w, a, [bits](size_t i) { return floatFromHalf(bits[i]); });
+double dotFloat(const std::vector<double>& wx, const std::vector<float>& a, const std::vector<float>& b) {
+    return chunkedDot(a.size(), [&](size_t b0, size_t e0, double* acc) {
+        laneProductsFloat(wx, a.data(), b.data(), b0, e0, acc);
+    });
+}
+
+double dotHalf(const std::vector<double>& wx, const std::vector<float>& a, const HalfBuffer& b) {
+    return double(b.scale) * chunkedDot(a.size(), [&](size_t b0, size_t e0, double* acc) {
+               laneProductsHalf(wx, a.data(), b.bits.data(), b0, e0, acc);
+           });
+}
+
+LPM_SIMD_CLONES
+void axpyRange(float* y, double a, const std::uint16_t* x, size_t b0, size_t e0) {
+    for (size_t i = b0; i < e0; ++i) y[i] = float(double(y[i]) + a * double(floatFromHalf(x[i])));
 }
 
 /// y += a x for a Krylov vector x.
 void axpy(std::vector<float>& y, double a, const HalfBuffer& x) {
     const double as = a * double(x.scale);
-    parallelForChunks(y.size(), kChunk, [&](size_t b0, size_t e0) {
-        for (size_t i = b0; i < e0; ++i) y[i] = float(double(y[i]) + as * double(floatFromHalf(x.bits[i])));
-    });
+    parallelForChunks(y.size(), kChunk, [&](size_t b0, size_t e0) { axpyRange(y.data(), as, x.bits.data(), b0, e0); });
 }
 
-/// v /= divisor, rounded to a Krylov vector; v becomes the rounded vector's exact value, so
+LPM_SIMD_CLONES
+void roundRange(float* v, double divisor, float scale, std::uint16_t* bits, size_t b0, size_t e0) {
+    const float inverse = 1.0f / scale;  // a power of two: exact
+    for (size_t i = b0; i < e0; ++i) {
+        bits[i] = halfFromFloat(float(v[i] / divisor) * inverse);
+        v[i] = floatFromHalf(bits[i]) * scale;
+    }
+}
+
+/// v / divisor rounded to a Krylov vector; v becomes the rounded vector's exact value, so
 /// the operator is applied to what the basis holds (the Arnoldi relation stays exact).
 HalfBuffer normalisedKrylovVector(std::vector<float>& v, double divisor) {
-    parallelForChunks(v.size(), kChunk, [&](size_t b0, size_t e0) {
-        for (size_t i = b0; i < e0; ++i) v[i] = float(v[i] / divisor);
-    });
-    HalfBuffer h = HalfBuffer::encode(v);
-    parallelForChunks(v.size(), kChunk, [&](size_t b0, size_t e0) {
-        for (size_t i = b0; i < e0; ++i) v[i] = h.at(i);
-    });
+    HalfBuffer h;
+    h.scale = HalfBuffer::scaleFor(float(largestFinite(v) / divisor));
+    assignZeroed(h.bits, v.size());
+    parallelForChunks(v.size(), kChunk,
+                      [&](size_t b0, size_t e0) { roundRange(v.data(), divisor, h.scale, h.bits.data(), b0, e0); });
     return h;
 }
 
@@ -93,15 +146,15 @@ double rotateColumn(std::vector<std::vector<double>>& H, std::vector<double>& cs
 }  // namespace
 
 double weightedDot(const std::vector<double>& w, const std::vector<float>& a, const std::vector<float>& b) {
-    const float* bv = b.data();
-    return chunkedWeightedDot(w, a, [bv](size_t i) { return bv[i]; });
+    return dotFloat(lanedWeights(w), a, b);
 }
 
 GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, const std::vector<double>& weights,
                        double target, int restart, const std::function<bool()>& mayApply, std::vector<float>& X) {
     const size_t len = B.size();
     GmresReport rep;
-    rep.rhsNorm = std::sqrt(weightedDot(weights, B, B));
+    const std::vector<double> wx = lanedWeights(weights);
+    rep.rhsNorm = std::sqrt(dotFloat(wx, B, B));
     // Full-length float vectors: X, v (the Krylov vector the operator is applied to) and w
     // (its product, orthogonalised into the next one), on huge pages: each is tens of MiB
     // on a coarse grid. B is the caller's. The basis is kept in half precision.
@@ -122,10 +175,10 @@ GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, con
             A(v, w);
             ++rep.matvecs;
             for (int i = 0; i <= k; ++i) {  // modified Gram-Schmidt
-                H[i][k] = weightedDotHalf(weights, w, basis[i]);
+                H[i][k] = dotHalf(wx, w, basis[i]);
                 axpy(w, -H[i][k], basis[i]);
             }
-            H[k + 1][k] = std::sqrt(weightedDot(weights, w, w));
+            H[k + 1][k] = std::sqrt(dotFloat(wx, w, w));
             const double hk1 = rotateColumn(H, cs, sn, g, k);
             // Converged, breakdown, or the cycle's end (V_{k+1} would not be used).
             if (std::fabs(g[k + 1]) <= target || hk1 <= 1e-30 * rep.rhsNorm || k + 1 == restart) {
@@ -143,7 +196,7 @@ GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, con
         parallelForChunks(len, kChunk, [&](size_t b0, size_t e0) {
             for (size_t i = b0; i < e0; ++i) v[i] = B[i] - w[i];
         });
-        rNorm = std::sqrt(weightedDot(weights, v, v));
+        rNorm = std::sqrt(dotFloat(wx, v, v));
     }
     rep.residualNorm = rNorm;
     rep.converged = rNorm <= target;

@@ -13,48 +13,28 @@
 
 namespace lpm {
 
-namespace {
-
-std::uint32_t bitsOf(float x) {
-    std::uint32_t u;
-    std::memcpy(&u, &x, sizeof u);
-    return u;
+float largestFinite(const std::vector<float>& x) {
+    std::vector<float> part((x.size() + (1 << 16) - 1) >> 16, 0.0f);
+    parallelForChunks(x.size(), 1 << 16, [&](std::size_t b, std::size_t e) {
+        float largest = 0;
+        for (std::size_t i = b; i < e; ++i)
+            if (std::isfinite(x[i])) largest = std::max(largest, std::fabs(x[i]));
+        part[b >> 16] = largest;
+    });
+    float largest = 0;
+    for (float p : part) largest = std::max(largest, p);
+    return largest;
 }
 
-float floatOf(std::uint32_t u) {
-    float x;
-    std::memcpy(&x, &u, sizeof x);
-    return x;
-}
-
-}  // namespace
-
-std::uint16_t halfFromFloat(float x) {
-    std::uint32_t f = bitsOf(x);
-    const std::uint32_t sign = f & 0x80000000u;
-    f ^= sign;
-    std::uint32_t h;
-    if (f >= 0x47800000u) {  // |x| >= 65536, infinity or NaN
-        h = f > 0x7f800000u ? 0x7e00u : 0x7c00u;
-    } else if (f < 0x38800000u) {                 // |x| < 2^-14: subnormal or zero; the FPU's addition rounds
-        const float magic = floatOf(126u << 23);  // 0.5: ulp 2^-24, the subnormal step
-        h = bitsOf(floatOf(f) + magic) - bitsOf(magic);
-    } else {  // normal: rebias the exponent, round the 13 dropped bits to nearest even
-        const std::uint32_t mantissaOdd = (f >> 13) & 1u;
-        f += (std::uint32_t(15 - 127) << 23) + 0xfffu + mantissaOdd;
-        h = f >> 13;  // a carry into exponent 31 is infinity, as it should be
-    }
-    return std::uint16_t(h | (sign >> 16));
+float HalfBuffer::scaleFor(float largest) {
+    // largest / scale in [2^14, 2^15): below the half range's 65504, with a factor 2 to
+    // spare. At least 2^-126 (float's smallest normal): the scale and its inverse are exact.
+    return largest > 0 ? std::ldexp(1.0f, std::max(std::ilogb(largest) - 14, -126)) : 1.0f;
 }
 
 HalfBuffer HalfBuffer::encode(const std::vector<float>& x) {
-    float largest = 0;
-    for (float v : x)
-        if (std::isfinite(v)) largest = std::max(largest, std::fabs(v));
     HalfBuffer out;
-    // largest / scale in [2^14, 2^15): below the half range's 65504, with a factor 2 to
-    // spare. At least 2^-126 (float's smallest normal): the scale and its inverse are exact.
-    if (largest > 0) out.scale = std::ldexp(1.0f, std::max(std::ilogb(largest) - 14, -126));
+    out.scale = scaleFor(largestFinite(x));
     const float inverse = 1.0f / out.scale;  // a power of two: exact
     assignZeroed(out.bits, x.size());
     parallelForChunks(x.size(), 1 << 16, [&](std::size_t b, std::size_t e) {
