@@ -28,6 +28,9 @@ void LpmSolve::runSeparablePass(const SeparableSource* src, Tally& t, const std:
                             [&](const Job* js, size_t n, const std::vector<std::vector<float>>& phi) {
                                 fold.fold(true, js, n, phi, res_.sh);
                             });
+    // The deposit buffers go before finish() rounds the shape to half precision, which holds
+    // its float sum and the rounded copy at once: the fine pass's peak would be there.
+    runner_->releaseBuffers();
     sep_->next = fold.finish();
 }
 

@@ -46,7 +46,7 @@ std::vector<float> SeparableSource::restricted() const {
     std::vector<float> out;
     assignZeroed(out, shape.size());
     parallelForChunks(shape.size(), 1 << 16, [&](size_t b, size_t e) {
-        for (size_t i = b; i < e; ++i) out[i] = offset.empty() ? shape[i] : shape[i] + offsetAt(i);
+        for (size_t i = b; i < e; ++i) out[i] = offset.empty() ? shape.at(i) : shape.at(i) + offsetAt(i);
     });
     return out;
 }
@@ -72,8 +72,9 @@ void fillBinRange(size_t vb, size_t ve, const SeparableSource& u, const std::uin
                 continue;
             }
             const size_t i = (p * nb + size_t(bin)) * 3 + size_t(c), pc = size_t(p) * 3 + size_t(c);
-            const float s = u.invAbs[pc] > 0 ? std::fabs(u.shape[i]) * u.invAbs[pc] : u.invWeight;
-            out[v * 3 + c] = u.shape[i] + (u.magnitude[v * 3 + c] - u.norm[pc]) * s + (off ? off[pc] : 0.0f);
+            const float r = u.shape.at(i);
+            const float s = u.invAbs[pc] > 0 ? std::fabs(r) * u.invAbs[pc] : u.invWeight;
+            out[v * 3 + c] = r + (u.magnitude[v * 3 + c] - u.norm[pc]) * s + (off ? off[pc] : 0.0f);
         }
     }
 }
@@ -100,7 +101,7 @@ double SeparableSource::power(const FineCoarseMap& map, const std::vector<double
         for (int d = 0; d < bins; ++d)
             for (int c = 0; c < 3; ++c) {
                 const size_t i = (ci * size_t(bins) + size_t(d)) * 3 + size_t(c);
-                const float r = offset.empty() ? shape[i] : shape[i] + offsetAt(i);  // restricted(), not materialised
+                const float r = offset.empty() ? shape.at(i) : shape.at(i) + offsetAt(i);  // restricted(), not materialised
                 p += double(r) * map.sigmaSum[ci] * albedo[c] * binWeight[size_t(d)];
             }
     return p * fineVoxelVolume / 3.0;
@@ -112,7 +113,7 @@ SeparableFold::SeparableFold(const FineCoarseMap& map, const std::vector<float>&
       nc_(shCoeffs) {
     out_.bins = nb_;
     assignZeroed(out_.magnitude, map.parent.size() * 3);
-    assignZeroed(out_.shape, map.sigmaSum.size() * size_t(nb_) * 3);
+    assignZeroed(shapeSum_, map.sigmaSum.size() * size_t(nb_) * 3);
 }
 
 namespace {
@@ -248,31 +249,41 @@ void SeparableFold::fold(bool depositSh, const Job* jobs, size_t n, const std::v
         foldFineRange(vb, ve, k, map_, sigmaT_.data(), phi, depositSh, sh.data(), out_.magnitude.data(), psi_.data());
     });
     parallelForChunks(map_.sigmaSum.size(), 4096,
-                      [&](size_t cb, size_t ce) { foldCoarseRange(cb, ce, k, out_.shape.data(), psi_.data()); });
+                      [&](size_t cb, size_t ce) { foldCoarseRange(cb, ce, k, shapeSum_.data(), psi_.data()); });
 }
 
+// R_C is rounded to half precision (core/half_buffer.h), and |R_C| and the shape's
+// normaliser are taken from the rounded values, so fillBin still gives every fine voxel its
+// angular integral m_f exactly: the rounding moves no power between voxels, it only changes
+// how a voxel's source divides among the bins, by at most 2^-11 of each bin's value.
 SeparableSource SeparableFold::finish() {
     const size_t nb = size_t(nb_);
+    parallelForChunks(map_.sigmaSum.size(), 4096, [&](size_t cb, size_t ce) {
+        for (size_t ci = cb; ci < ce; ++ci) {
+            const float s = map_.sigmaSum[ci];
+            float* r = &shapeSum_[ci * nb * 3];
+            for (size_t i = 0; i < nb * 3; ++i) r[i] = s > 0 ? r[i] / s : 0.0f;
+        }
+    });
+    out_.shape = HalfBuffer::encode(shapeSum_);
+    shapeSum_ = std::vector<float>();
     assignZeroed(out_.norm, map_.sigmaSum.size() * 3);
     assignZeroed(out_.invAbs, map_.sigmaSum.size() * 3);
     double weightSum = 0;
     for (float w : binWeight_) weightSum += w;
     out_.invWeight = float(1.0 / weightSum);
     parallelForChunks(map_.sigmaSum.size(), 4096, [&](size_t cb, size_t ce) {
-        for (size_t ci = cb; ci < ce; ++ci) {
-            const float s = map_.sigmaSum[ci];
-            float* r = &out_.shape[ci * nb * 3];
-            for (size_t i = 0; i < nb * 3; ++i) r[i] = s > 0 ? r[i] / s : 0.0f;
-            for (int c = 0; c < 3; ++c) {
+        for (size_t ci = cb; ci < ce; ++ci)
+            for (size_t c = 0; c < 3; ++c) {
                 double norm = 0, abs = 0;
                 for (size_t d = 0; d < nb; ++d) {
-                    norm += double(binWeight_[d]) * r[d * 3 + size_t(c)];
-                    abs += double(binWeight_[d]) * std::fabs(r[d * 3 + size_t(c)]);
+                    const double r = out_.shape.at((ci * nb + d) * 3 + c);
+                    norm += double(binWeight_[d]) * r;
+                    abs += double(binWeight_[d]) * std::fabs(r);
                 }
-                out_.norm[ci * 3 + size_t(c)] = float(norm);
-                out_.invAbs[ci * 3 + size_t(c)] = abs > 0 ? float(1.0 / abs) : 0.0f;
+                out_.norm[ci * 3 + c] = float(norm);
+                out_.invAbs[ci * 3 + c] = abs > 0 ? float(1.0 / abs) : 0.0f;
             }
-        }
     });
     SeparableSource s = std::move(out_);
     out_ = SeparableSource();

@@ -44,7 +44,7 @@ struct FineCoarseMap {
 struct SeparableSource {
     int bins = 0;
     std::vector<float> magnitude;  ///< m_f [fine voxel][rgb]
-    std::vector<float> shape;      ///< R_C [coarse voxel][bin][rgb]
+    HalfBuffer shape;              ///< R_C [coarse voxel][bin][rgb], in half precision
     std::vector<float> norm;       ///< |R_C| [coarse voxel][rgb] (signed)
     std::vector<float> invAbs;     ///< 1 / sum_d w_d |R_C(d)| [coarse voxel][rgb], 0 where R_C = 0
     float invWeight = 0;           ///< 1 / sum_d w_d: the isotropic shape
@@ -86,7 +86,8 @@ private:
     const std::vector<float>& sigmaT_;
     std::vector<float> binWeight_;
     int nb_, nc_;
-    SeparableSource out_;     ///< shape holds sum_f sigma_f U_f(d) until finish()
+    SeparableSource out_;
+    std::vector<float> shapeSum_;  ///< sum_f sigma_f U_f(d) [coarse voxel][bin][rgb] until finish()
     std::vector<float> psi_;  ///< [coarse voxel][job][rgb]: a batch's sum_f sigma_f phi_j(f), 0 between batches
 };
 

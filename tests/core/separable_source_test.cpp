@@ -101,10 +101,13 @@ void expectFoldsMatch(const Medium& f, const FineCoarseMap& map, const FoldInput
                 for (int d = 0; d < in.bins; ++d) m += in.binWeight[d] * U[(v * in.bins + d) * 3 + ch];
                 ASSERT_NEAR(s.magnitude[v * 3 + ch], m, 1e-5 * (1 + m)) << v;
             }
+        // R_C is held in half precision: within 2^-11 of each value (core/half_buffer.h).
         const std::vector<float> r = s.restricted();
         ASSERT_EQ(r.size(), restrictedFull.size());
         for (size_t i = 0; i < r.size(); ++i)
-            ASSERT_NEAR(r[i], restrictedFull[i], 1e-5f * (1 + restrictedFull[i])) << i;
+            ASSERT_NEAR(r[i], restrictedFull[i],
+                        1e-5f * (1 + restrictedFull[i]) + std::ldexp(1.0f, -11) * std::fabs(restrictedFull[i]))
+                << i;
     }
 }
 
@@ -149,10 +152,11 @@ TEST(SeparableSource, FoldKeepsTheFullFoldsIntegralsAndRestriction) {
     }
 }
 
-// Reconstruction: every fine voxel's angular integral is its magnitude; a source whose
-// angular shape is constant within each coarse voxel comes back exactly; the power, with a
-// coarse offset of two half-precision parts, is that of the full source with their sum
-// injected.
+// Reconstruction: every fine voxel's angular integral is its magnitude, exactly, though
+// R_C is held in half precision; a source whose angular shape is constant within each
+// coarse voxel comes back to within R_C's rounding (2^-11 of each bin's value, twice over
+// with the normalisation); the power, with a coarse offset of two half-precision parts, is
+// that of the full source with their sum injected, to within the same rounding.
 TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
     const Medium f = sparseBlock(6);
     const Medium c = coarsen(f);
@@ -209,7 +213,9 @@ TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
                 // there has no power.
                 if (map.parent[v] == FineCoarseMap::kNone || !(map.sigmaSum[map.parent[v]] > 0)) continue;
                 const float want = withTail[(v * bins + d) * 3 + ch];
-                ASSERT_NEAR(out[v * 3 + ch], want, 2e-5f * (1 + std::fabs(want))) << v << " bin " << d;
+                const float shaped = U[(v * bins + d) * 3 + ch];
+                ASSERT_NEAR(out[v * 3 + ch], want, 2e-5f * (1 + std::fabs(want)) + std::ldexp(1.0f, -10) * shaped)
+                    << v << " bin " << d;
                 integral[v * 3 + ch] += w[d] * (out[v * 3 + ch] - offsetSum[(map.parent[v] * bins + d) * 3 + ch]);
             }
     }
@@ -227,7 +233,7 @@ TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
             for (int ch = 0; ch < 3; ++ch)
                 want += double(withTail[(v * bins + d) * 3 + ch]) * f.sigmaT[v] * albedo[ch] * w[d] * f.voxelVolume();
     want /= 3;
-    EXPECT_NEAR(s.power(map, w, albedo, f.voxelVolume()), want, 1e-5 * std::fabs(want));
+    EXPECT_NEAR(s.power(map, w, albedo, f.voxelVolume()), want, std::ldexp(1.0, -11) * std::fabs(want));
 }
 
 // A bake with separable fine sources (auto with unshot bins and the two-grid solve) keeps
