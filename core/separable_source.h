@@ -11,10 +11,11 @@
 // linear in m_f where it has not (the two-grid cycle's residuals change sign; a division
 // by |R_C| there lost their sources and stalled the cycle at albedo 0.99).
 // P_C is a piecewise-constant part (the two-grid cycle's coarse tails), held as the sum of
-// at most two half-precision buffers (core/half_buffer.h). Exact: every fine
-// voxel's angular integral, and the sigma-weighted restriction (so the source power of
-// every coarse voxel in every bin). Approximate: how the angular shape varies among the
-// 8 children of a coarse voxel.
+// at most two half-precision buffers (core/half_buffer.h). R_C is held in half precision
+// too, |R_C| and S_C taken from the rounded values. Exact: every fine voxel's angular
+// integral. To within R_C's rounding (2^-11): the sigma-weighted restriction (so the
+// source power of every coarse voxel in every bin). Approximate: how the angular shape
+// varies among the 8 children of a coarse voxel.
 #pragma once
 
 #include <cstdint>
