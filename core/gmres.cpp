@@ -42,13 +42,15 @@ inline void addLaneProducts(const std::vector<double>& wx, const float* a, Secon
 LPM_SIMD_CLONES
 void laneProductsFloat(const std::vector<double>& wx, const float* a, const float* b, size_t b0, size_t e0,
                        double* acc) {
-    addLaneProducts(wx, a, [b](size_t i) { return b[i]; }, b0, e0, acc);
+    addLaneProducts(
+        wx, a, [b](size_t i) { return b[i]; }, b0, e0, acc);
 }
 
 LPM_SIMD_CLONES
 void laneProductsHalf(const std::vector<double>& wx, const float* a, const std::uint16_t* b, size_t b0, size_t e0,
                       double* acc) {
-    addLaneProducts(wx, a, [b](size_t i) { return floatFromHalf(b[i]); }, b0, e0, acc);
+    addLaneProducts(
+        wx, a, [b](size_t i) { return floatFromHalf(b[i]); }, b0, e0, acc);
 }
 
 /// <a, b>_w (b read by `chunkProducts`): lane sums per chunk, chunks summed in order, so
@@ -69,9 +71,8 @@ double chunkedDot(size_t len, const ChunkProducts& chunkProducts) {
 }
 
 double dotFloat(const std::vector<double>& wx, const std::vector<float>& a, const std::vector<float>& b) {
-    return chunkedDot(a.size(), [&](size_t b0, size_t e0, double* acc) {
-        laneProductsFloat(wx, a.data(), b.data(), b0, e0, acc);
-    });
+    return chunkedDot(
+        a.size(), [&](size_t b0, size_t e0, double* acc) { laneProductsFloat(wx, a.data(), b.data(), b0, e0, acc); });
 }
 
 double dotHalf(const std::vector<double>& wx, const std::vector<float>& a, const HalfBuffer& b) {

@@ -18,6 +18,7 @@
 #include "core/delta_m.h"
 #include "core/env_binning.h"
 #include "core/gmres.h"
+#include "core/half_buffer.h"
 #include "core/lpm_solve.h"
 #include "core/malloc_policy.h"
 #include "core/parallel.h"
@@ -328,6 +329,14 @@ void LpmSolve::finishWithGmres() {
     const int restart = int(std::clamp<size_t>(size_t(s_.krylovBytes / double(std::max<size_t>(1, vecBytes))), 4,
                                                size_t(std::max(4, s_.krylovRestart))));
     const double bNorm = std::sqrt(weightedDot(binW, B, B));
+    // A coarse solve's sum of the sources so far waits in half precision while GMRES holds
+    // its vectors: it is the two-grid cycle's tail, which is rounded to half anyway and
+    // whose rounding the cycle corrects (docs/multires.md, "The tail in half precision").
+    HalfBuffer heldSum;
+    if (initialSource_) {
+        heldSum = HalfBuffer::encode(res_.sourceSum);
+        res_.sourceSum = std::vector<float>();
+    }
     std::vector<float> X;
     const GmresReport rep = solveGmres(
         A, B, binW, s_.tolerance * 0.1 * bNorm, restart, [&] { return pass_ < s_.maxOrders; }, X);
@@ -337,6 +346,13 @@ void LpmSolve::finishWithGmres() {
     // Final physical pass: deposit S from the whole remaining sum.
     const auto tp = Clock::now();
     assignZeroed(next_, len);  // GMRES's vectors are freed by now
+    if (initialSource_) {
+        assignZeroed(res_.sourceSum, heldSum.size());
+        parallelForChunks(heldSum.size(), 1 << 16, [&](size_t b0, size_t e0) {
+            for (size_t i = b0; i < e0; ++i) res_.sourceSum[i] = heldSum.at(i);
+        });
+        heldSum = HalfBuffer();
+    }
     addToSourceSum(X);
     Tally t;
     runner_->run(sourceJobs(X), r_, t, depositSh_, next_);

@@ -101,7 +101,8 @@ double SeparableSource::power(const FineCoarseMap& map, const std::vector<double
         for (int d = 0; d < bins; ++d)
             for (int c = 0; c < 3; ++c) {
                 const size_t i = (ci * size_t(bins) + size_t(d)) * 3 + size_t(c);
-                const float r = offset.empty() ? shape.at(i) : shape.at(i) + offsetAt(i);  // restricted(), not materialised
+                const float r =
+                    offset.empty() ? shape.at(i) : shape.at(i) + offsetAt(i);  // restricted(), not materialised
                 p += double(r) * map.sigmaSum[ci] * albedo[c] * binWeight[size_t(d)];
             }
     return p * fineVoxelVolume / 3.0;

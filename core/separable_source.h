@@ -89,7 +89,7 @@ private:
     int nb_, nc_;
     SeparableSource out_;
     std::vector<float> shapeSum_;  ///< sum_f sigma_f U_f(d) [coarse voxel][bin][rgb] until finish()
-    std::vector<float> psi_;  ///< [coarse voxel][job][rgb]: a batch's sum_f sigma_f phi_j(f), 0 between batches
+    std::vector<float> psi_;       ///< [coarse voxel][job][rgb]: a batch's sum_f sigma_f phi_j(f), 0 between batches
 };
 
 }  // namespace lpm
