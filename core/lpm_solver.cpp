@@ -313,6 +313,7 @@ void LpmSolve::finishWithGmres() {
     // deposited into A v's own storage, then A v = v - K v in place: no buffer for K v.
     const std::vector<float> B = std::move(next_);
     unshot_ = std::vector<float>();
+    returnFreedHeapPages();  // GMRES's vectors come next: the fine passes' freed buffers go back
     const LinearOperator A = [&](const std::vector<float>& v, std::vector<float>& outv) {  // A v = v - K v
         const auto tp = Clock::now();
         std::fill(outv.begin(), outv.end(), 0.0f);
