@@ -61,6 +61,13 @@ std::vector<double> directSolve(const std::vector<std::vector<double>>& K, const
     return x;
 }
 
+/// Weights first, first + 1, ..., first + period - 1, repeated over n values.
+std::vector<double> repeatingWeights(int n, double first, int period) {
+    std::vector<double> w(n);
+    for (int i = 0; i < n; ++i) w[i] = first + i % period;
+    return w;
+}
+
 std::vector<float> randomRhs(int n, std::uint64_t seed) {
     Pcg32 rng(seed, 5);
     std::vector<float> b(n);
@@ -99,8 +106,7 @@ TEST(Gmres, ConvergesFarBelowTheBasisPrecision) {
     const int n = 80;
     const auto K = makeSystem(n, 0.95, 11);
     const std::vector<float> b = randomRhs(n, 12);
-    std::vector<double> w(n);
-    for (int i = 0; i < n; ++i) w[i] = 1.0 + i % 4;
+    const std::vector<double> w = repeatingWeights(n, 1.0, 4);
     const double bNorm = std::sqrt(weightedDot(w, b, b));
     for (int restart : {40, 4}) {
         std::vector<float> x, ax(n), r(n);
@@ -119,8 +125,7 @@ TEST(Gmres, WeightedInnerProductAndBudget) {
     const int n = 30;
     const auto K = makeSystem(n, 0.9, 4);
     const std::vector<float> b = randomRhs(n, 5);
-    std::vector<double> w(n);
-    for (int i = 0; i < n; ++i) w[i] = 0.5 + i % 3;
+    const std::vector<double> w = repeatingWeights(n, 0.5, 3);
     std::vector<float> x;
     int budget = 3;
     const GmresReport stopped = solveGmres(
