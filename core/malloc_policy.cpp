@@ -61,7 +61,6 @@ void keepFreedBuffersForReuse() {
     // mapped block is freed (and trims the heap at twice it).
     mallopt(M_MMAP_THRESHOLD, 32 << 20);
     mallopt(M_TRIM_THRESHOLD, 256 << 20);
-    mallopt(M_ARENA_MAX, 1);
     adviseHeapOntoHugePages();
 #endif
 }

@@ -11,11 +11,11 @@
 //    advised MADV_HUGEPAGE before their first touch, so one fault maps 2 MiB
 //    (`assignZeroed`). The kernel's THP mode here is "madvise": without the advice none
 //    are used.
-// 3. One heap (arena) for all threads: a per-pass buffer that a worker thread allocated
-//    and freed is reused by whichever thread asks next, instead of staying resident in
-//    that thread's arena. plume-1M at g = 0.6 peaked at 664 or 697 MiB from run to run
-//    with one arena per thread, at 664-670 MiB with one; the bakes allocate about 16k
-//    blocks a second, so the shared lock costs nothing measurable.
+// 3. Buffers reused from pass to pass are allocated by the thread that runs the pass,
+//    never inside a parallel body (PassRunner::reserveBuffers): glibc gives each thread
+//    its own heap, and a block a worker allocated went back to that worker's heap and
+//    stayed resident there (plume-1M at g = 0.6 peaked at 664 or 697 MiB from run to run,
+//    depending on which thread had allocated the deposit buffers; now 662-667).
 #pragma once
 
 #include <cstddef>
@@ -24,10 +24,9 @@
 namespace lpm {
 
 /// Keeps freed blocks below 32 MiB in the heap for reuse (mmap threshold fixed at 32 MiB,
-/// heap trimmed only above 256 MiB free), one heap for all threads, and advises the first
-/// 192 MiB of the main heap onto huge pages (the volume read's tree nodes fault in 2 MiB at
-/// a time: the smoke's read 0.085 -> 0.055 s). Call once, before any thread starts; a
-/// no-op outside glibc.
+/// heap trimmed only above 256 MiB free), and advises the first 192 MiB of the main heap
+/// onto huge pages (the volume read's tree nodes fault in 2 MiB at a time: the smoke's read
+/// 0.085 -> 0.055 s). Call once, before any thread starts; a no-op outside glibc.
 void keepFreedBuffersForReuse();
 
 /// Gives the heap's free pages back to the kernel (glibc's malloc_trim): for the points
@@ -45,17 +44,24 @@ bool heapAdviceSupported();
 /// off, or off Linux.
 void adviseHugePages(void* p, std::size_t bytes);
 
-/// v.assign(n, 0) for a large buffer: when v must grow, its new storage is advised onto
-/// huge pages before the zeros first touch it. Returns v.
+/// Makes room for n elements in v, in new storage advised onto huge pages when v must
+/// grow (not touched: the first write faults it in). Returns v.
 template <class T>
-std::vector<T>& assignZeroed(std::vector<T>& v, std::size_t n) {
+std::vector<T>& reserveOnHugePages(std::vector<T>& v, std::size_t n) {
     if (v.capacity() < n) {
         std::vector<T> fresh;
         fresh.reserve(n);
         adviseHugePages(fresh.data(), n * sizeof(T));
         v.swap(fresh);
     }
-    v.assign(n, T{});
+    return v;
+}
+
+/// v.assign(n, 0) for a large buffer: when v must grow, its new storage is advised onto
+/// huge pages before the zeros first touch it. Returns v.
+template <class T>
+std::vector<T>& assignZeroed(std::vector<T>& v, std::size_t n) {
+    reserveOnHugePages(v, n).assign(n, T{});
     return v;
 }
 
@@ -63,13 +69,7 @@ std::vector<T>& assignZeroed(std::vector<T>& v, std::size_t n) {
 /// Returns v.
 template <class T>
 std::vector<T>& assignCopy(std::vector<T>& v, const std::vector<T>& src) {
-    if (v.capacity() < src.size()) {
-        std::vector<T> fresh;
-        fresh.reserve(src.size());
-        adviseHugePages(fresh.data(), src.size() * sizeof(T));
-        v.swap(fresh);
-    }
-    v.assign(src.begin(), src.end());
+    reserveOnHugePages(v, src.size()).assign(src.begin(), src.end());
     return v;
 }
 

@@ -109,6 +109,11 @@ void PassRunner::releaseBuffers() const { buffers_ = std::vector<std::vector<flo
 
 std::vector<float>& PassRunner::zeroedBuffer(size_t i, size_t len) const { return assignZeroed(buffers_[i], len); }
 
+void PassRunner::reserveBuffers(size_t count, size_t len) const {
+    if (buffers_.size() < count) buffers_.resize(count);
+    for (size_t i = 0; i < count; ++i) reserveOnHugePages(buffers_[i], len);
+}
+
 void PassRunner::run(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const {
     if (isotropic(jobs)) runIsotropic(jobs, r, total, depositSh, out);
     else runGeneral(jobs, r, total, depositSh, out);
@@ -151,7 +156,7 @@ void PassRunner::sweepInBatches(const std::vector<Job>& jobs, const std::vector<
     const int M = shape_.moments;
     for (size_t b = 0; b < starts.size(); ++b) {
         const size_t b0 = starts[b], nbatch = (b + 1 < starts.size() ? starts[b + 1] : jobs.size()) - b0;
-        if (buffers_.size() < nbatch) buffers_.resize(nbatch);
+        reserveBuffers(nbatch, N * 3 * size_t(M));
         if (before) before(b);
         std::vector<Tally> tallies(nbatch);
         // Jobs that sweep the same planes go as groups (sweepStepGroup), each job's deposits
@@ -217,7 +222,7 @@ void PassRunner::runIsotropic(const std::vector<Job>& jobs, int r, Tally& total,
     const float perWeight = jobs.empty() ? 0.0f : float(jobs[0].binCoef[0] / jobs[0].weight);
     const std::vector<std::vector<const Job*>> batches = sweepBatches(jobs, kBatchSplit);
     const size_t G = batches.size();
-    if (buffers_.size() < G) buffers_.resize(G);
+    reserveBuffers(G, N * 3);
     const std::vector<std::vector<float>>& acc = buffers_;
     std::vector<Tally> tallies(G);
     parallelForChunks(G, 1, [&](size_t gb, size_t ge) {

@@ -51,6 +51,10 @@ private:
     /// buffers are kept from pass to pass: allocated and freed every pass, their pages
     /// were faulted in again each time (a fifth of a bake's time, docs/performance.md).
     std::vector<float>& zeroedBuffer(size_t i, size_t len) const;
+    /// Room for `len` floats in the first `count` buffers, allocated by the calling thread
+    /// before the parallel sweeps zero them: a block allocated on a worker would come from
+    /// (and go back to) that thread's heap, where it stays resident when freed.
+    void reserveBuffers(size_t count, size_t len) const;
 
     void runGeneral(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const;
     void runIsotropic(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const;

@@ -7,11 +7,6 @@
 #include <cstring>
 #include <fstream>
 #include <string>
-#include <thread>
-
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
 
 #include "core/math.h"
 
@@ -95,32 +90,6 @@ TEST(MallocPolicy, FreedHeapPagesGoBackWhenAsked) {
     EXPECT_GT(freed + 64 * (size_t(1) << 20), touched) << "freed blocks left the heap without being asked";
     EXPECT_LT(returned + 64 * (size_t(1) << 20), freed)
         << "resident " << (freed >> 20) << " -> " << (returned >> 20) << " MiB";
-}
-
-// One heap for all threads: a buffer a worker thread frees is reused by the next pass
-// whichever thread asks, instead of staying resident in that thread's own arena (the
-// plume-1M g = 0.6 bake peaked at 664 or 697 MiB depending on which thread allocated).
-TEST(MallocPolicy, WorkerThreadsShareTheMainHeap) {
-    if (!heapAdviceSupported()) GTEST_SKIP() << "no glibc heap in this build (sanitizer allocator or not Linux)";
-#if defined(__GLIBC__)
-    keepFreedBuffersForReuse();
-    std::thread worker([] {
-        void* p = std::malloc(1 << 20);
-        std::memset(p, 1, 1 << 20);
-        std::free(p);
-    });
-    worker.join();
-    char* text = nullptr;
-    size_t size = 0;
-    FILE* out = open_memstream(&text, &size);
-    ASSERT_NE(out, nullptr);
-    malloc_info(0, out);
-    std::fclose(out);
-    const std::string info(text, size);
-    std::free(text);
-    EXPECT_NE(info.find("<heap nr=\"0\">"), std::string::npos) << info.substr(0, 200);
-    EXPECT_EQ(info.find("<heap nr=\"1\">"), std::string::npos) << "a second arena exists";
-#endif
 }
 
 }  // namespace
