@@ -362,8 +362,8 @@ void addSolverOptions(CLI::App& app, Args& a) {
     app.add_flag("--no-krylov", a.noKrylov, "never switch to GMRES acceleration (plain source iteration)")->group(gS);
     app.add_option(
            "--krylov-restart", a.b.solver.krylovRestart,
-           "GMRES restarts after this many Krylov vectors (4 at least; each the size of the unshot source): fewer hold "
-           "less memory and may need more passes")
+           "GMRES restarts after this many Krylov vectors (4 at least; each the unshot source in half precision): "
+           "fewer hold less memory and may need more passes")
         ->default_val(a.b.solver.krylovRestart)
         ->group(gS);
     // Read as text and converted here: CLI11 would refuse "nan" without naming the allowed
