@@ -150,30 +150,54 @@ double weightedDot(const std::vector<double>& w, const std::vector<float>& a, co
     return dotFloat(lanedWeights(w), a, b);
 }
 
-GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, const std::vector<double>& weights,
-                       double target, int restart, const std::function<bool()>& mayApply, std::vector<float>& X) {
+namespace {
+
+/// B read element by element: a float vector's or a half buffer's.
+struct FloatRhs {
+    const std::vector<float>& b;
+    float at(size_t i) const { return b[i]; }
+    size_t size() const { return b.size(); }
+};
+
+/// r = B - Ax (B alone when Ax is null).
+template <class Rhs>
+void formResidual(const Rhs& B, const std::vector<float>* Ax, std::vector<float>& r) {
+    parallelForChunks(B.size(), kChunk, [&](size_t b0, size_t e0) {
+        for (size_t i = b0; i < e0; ++i) r[i] = Ax ? B.at(i) - (*Ax)[i] : B.at(i);
+    });
+}
+
+/// The restarted cycles. With onBasis, A is applied to each Krylov vector as stored and the
+/// product w is rounded in place into the next one; without, to v, the float copy of it.
+template <class Rhs>
+GmresReport runCycles(const LinearOperator& A, const HalfOperator* onBasis, const Rhs& B,
+                      const std::vector<double>& weights, double target, int restart,
+                      const std::function<bool()>& mayApply, std::vector<float>& X) {
     const size_t len = B.size();
     GmresReport rep;
     const std::vector<double> wx = lanedWeights(weights);
-    rep.rhsNorm = std::sqrt(dotFloat(wx, B, B));
-    // Full-length float vectors: X, v (the Krylov vector the operator is applied to) and w
-    // (its product, orthogonalised into the next one), on huge pages: each is tens of MiB
-    // on a coarse grid. B is the caller's. The basis is kept in half precision.
+    // Full-length float vectors: X, w (a product, orthogonalised into the next Krylov
+    // vector) and, without onBasis, v (the vector the operator is applied to), on huge
+    // pages: each is tens of MiB on a coarse grid. The basis is kept in half precision.
     assignZeroed(X, len);
     std::vector<float> v, w;
     assignZeroed(w, len);
-    assignCopy(v, B);  // the first cycle's residual
+    if (!onBasis) assignZeroed(v, len);
+    std::vector<float>& r = onBasis ? w : v;  // the residual, each cycle's first vector
+    formResidual(B, nullptr, r);
+    rep.rhsNorm = std::sqrt(dotFloat(wx, r, r));
     std::vector<HalfBuffer> basis;
     double rNorm = rep.rhsNorm;
     while (rNorm > target && mayApply()) {
         basis.clear();
-        basis.push_back(normalisedKrylovVector(v, rNorm));
+        basis.push_back(normalisedKrylovVector(r, rNorm));
         std::vector<std::vector<double>> H(restart + 1, std::vector<double>(restart, 0.0));
         std::vector<double> cs(restart), sn(restart), g(restart + 1, 0.0);
         g[0] = rNorm;
         int k = 0;
         for (; k < restart && mayApply(); ++k) {
-            A(v, w);
+            if (onBasis) (*onBasis)(basis[size_t(k)], w);
+            else A(v, w);
             ++rep.matvecs;
             for (int i = 0; i <= k; ++i) {  // modified Gram-Schmidt
                 H[i][k] = dotHalf(wx, w, basis[i]);
@@ -186,22 +210,33 @@ GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, con
                 ++k;
                 break;
             }
-            std::swap(v, w);
-            basis.push_back(normalisedKrylovVector(v, hk1));
+            if (!onBasis) std::swap(v, w);
+            basis.push_back(normalisedKrylovVector(onBasis ? w : v, hk1));
         }
         updateSolution(H, g, k, basis, X);
         // True residual r = B - A X (one more product; keeps restarts honest, and corrects
-        // what the half-precision basis rounded), formed in v for the next cycle.
+        // what the half-precision basis rounded), formed for the next cycle.
         A(X, w);
         ++rep.matvecs;
-        parallelForChunks(len, kChunk, [&](size_t b0, size_t e0) {
-            for (size_t i = b0; i < e0; ++i) v[i] = B[i] - w[i];
-        });
-        rNorm = std::sqrt(dotFloat(wx, v, v));
+        formResidual(B, &w, r);
+        rNorm = std::sqrt(dotFloat(wx, r, r));
     }
     rep.residualNorm = rNorm;
     rep.converged = rNorm <= target;
     return rep;
+}
+
+}  // namespace
+
+GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, const std::vector<double>& weights,
+                       double target, int restart, const std::function<bool()>& mayApply, std::vector<float>& X) {
+    return runCycles(A, nullptr, FloatRhs{B}, weights, target, restart, mayApply, X);
+}
+
+GmresReport solveGmres(const LinearOperator& A, const HalfOperator& onBasis, const HalfBuffer& B,
+                       const std::vector<double>& weights, double target, int restart,
+                       const std::function<bool()>& mayApply, std::vector<float>& X) {
+    return runCycles(A, &onBasis, B, weights, target, restart, mayApply, X);
 }
 
 }  // namespace lpm

@@ -19,14 +19,26 @@ struct GmresReport {
     bool converged = false;   ///< residualNorm <= target
 };
 
+struct HalfBuffer;
+
 /// y = A x (y has x's size on entry).
 using LinearOperator = std::function<void(const std::vector<float>& x, std::vector<float>& y)>;
+/// y = A x for x held in half precision (a Krylov vector; y has x's size on entry).
+using HalfOperator = std::function<void(const HalfBuffer& x, std::vector<float>& y)>;
 
 /// Solves A X = B from X = 0 until ||B - A X||_w <= target, in cycles of at most `restart`
 /// Krylov vectors, each closed by one true-residual product. `mayApply` is asked before
 /// each product of a cycle and before each new cycle; false stops (a pass budget).
 GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, const std::vector<double>& weights,
                        double target, int restart, const std::function<bool()>& mayApply, std::vector<float>& X);
+
+/// The same for B held in half precision, with the Krylov vectors handed to `onBasis` as
+/// they are stored (A still forms the true residual's product A X): GMRES then holds two
+/// float vectors (X and one product) instead of four (docs/lpm_solver.md, "Krylov
+/// acceleration"). onBasis(x) must equal A applied to x's exact value.
+GmresReport solveGmres(const LinearOperator& A, const HalfOperator& onBasis, const HalfBuffer& B,
+                       const std::vector<double>& weights, double target, int restart,
+                       const std::function<bool()>& mayApply, std::vector<float>& X);
 
 /// <a, b>_w summed in fixed chunks (thread-count independent); w repeats with period w.size().
 double weightedDot(const std::vector<double>& w, const std::vector<float>& a, const std::vector<float>& b);

@@ -100,6 +100,21 @@ std::vector<Job> JobFactory::sourceJobs(const std::vector<float>& src, int momen
     return jobs;
 }
 
+std::vector<Job> JobFactory::slotJobs(const std::vector<std::vector<float>>& slots, const RGB& albedo,
+                                     std::vector<int>& jobBin) const {
+    std::vector<Job> jobs;
+    jobBin.clear();
+    for (int i = 0; i < quad_.count(); ++i) {
+        Job j = direction(i);
+        j.src = slots[size_t(i) % slots.size()].data();
+        j.srcStride = 3;
+        j.srcScale = albedo;
+        jobs.push_back(std::move(j));
+        jobBin.push_back(ff_.binOfDirection(i));
+    }
+    return jobs;
+}
+
 std::vector<Job> JobFactory::binJobs(const float* binSource, const RGB& albedo, std::vector<int>& jobBin) const {
     std::vector<Job> jobs;
     jobBin.clear();

@@ -30,6 +30,11 @@ public:
     /// ordered by unshot bin, all reading `binSource` ([voxel][rgb]), which holds the bin of
     /// the jobs being swept. jobBin[j] receives job j's bin.
     std::vector<Job> binJobs(const float* binSource, const RGB& albedo, std::vector<int>& jobBin) const;
+    /// sourceJobs' jobs (a voxel-constant source), in its order, job j reading its bin from
+    /// slots[j % slots.size()] ([voxel][rgb]), which the caller fills before sweeping it.
+    /// jobBin[j] receives job j's bin.
+    std::vector<Job> slotJobs(const std::vector<std::vector<float>>& slots, const RGB& albedo,
+                              std::vector<int>& jobBin) const;
 
 private:
     Job sun(const Sun& s) const;

@@ -9,6 +9,8 @@
 #include <memory>
 #include <vector>
 
+#include "core/gmres.h"
+#include "core/half_buffer.h"
 #include "core/job_factory.h"
 #include "core/lpm_cache.h"
 #include "core/lpm_solver.h"
@@ -48,7 +50,12 @@ private:
     /// One fine pass with separable sources: of the light jobs (src null) or of `src`; its
     /// deposits fold into the SH result and sep_->next.
     void runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs = nullptr);
+    // The GMRES continuation (core/krylov_pass.cpp).
     void finishWithGmres();
+    void propagateHalf(const HalfBuffer& v, Tally& t, std::vector<float>& out);
+    HalfOperator basisOperator(const LinearOperator& A);
+    template <class Rhs>
+    double unaccounted(const Rhs& B, const std::vector<float>& KX, const std::vector<float>& X) const;
     void clampNegativeLinear();
     void addToSourceSum(const std::vector<float>& src, float scale = 1.0f);
     bool extrapolateTail(double last, double ratio);  ///< coarse continuation: the geometric tail
@@ -83,6 +90,7 @@ private:
         explicit SeparableState(const Medium& fine);
     };
     std::unique_ptr<SeparableState> sep_;
+    std::vector<std::vector<float>> halfSlots_;  ///< propagateHalf's decoded bins [slot][voxel][rgb]
     int pass_ = 1;
     float tailFactor_ = 1.0f;        ///< next's weight in the source sum: 1, or 1/(1 - rho) when extrapolated
     double extrapolatedError_ = -1;  ///< the extrapolation's estimated error (power), when it stopped the solve

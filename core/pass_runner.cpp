@@ -199,10 +199,14 @@ void PassRunner::runGeneral(const std::vector<Job>& jobs, int r, Tally& total, b
     const size_t N = m_.voxelCount();
     const size_t batchMem = size_t(512) << 20;
     const size_t maxBatch = std::max<size_t>(1, batchMem / std::max<size_t>(1, N * 3 * shape_.moments * sizeof(float)));
-    const size_t batch = std::min(jobs.size(), std::min<size_t>(maxBatch, 8));
+    runFilled(jobs, std::min<size_t>(maxBatch, 8), r, total, {}, depositSh, out);
+}
+
+void PassRunner::runFilled(const std::vector<Job>& jobs, size_t batch, int r, Tally& total,
+                           const std::function<void(size_t)>& before, bool depositSh, std::vector<float>& out) const {
     std::vector<size_t> starts;
-    for (size_t b0 = 0; b0 < jobs.size(); b0 += batch) starts.push_back(b0);
-    sweepInBatches(jobs, starts, r, total, {},
+    for (size_t b0 = 0; b0 < jobs.size(); b0 += std::max<size_t>(1, batch)) starts.push_back(b0);
+    sweepInBatches(jobs, starts, r, total, before,
                    [&](const Job* js, size_t n, const std::vector<std::vector<float>>& phi) {
                        foldDeposits(shape_, depositSh, js, n, phi, slopeVoxel_, sh_, out);
                    });

@@ -32,6 +32,11 @@ public:
     /// deposits to `out` ([voxel][bin][moment][rgb]) and, with depositSh, their SH to sh.
     void run(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const;
 
+    /// run() of the general fold in batches of `batch` consecutive jobs, `before(b)` run
+    /// before batch b is swept (it fills the sources that batch's jobs read).
+    void runFilled(const std::vector<Job>& jobs, size_t batch, int r, Tally& total,
+                   const std::function<void(size_t)>& before, bool depositSh, std::vector<float>& out) const;
+
     /// Whether `jobs` take the isotropic fold.
     bool isotropic(const std::vector<Job>& jobs) const;
 

@@ -1,0 +1,160 @@
+// The GMRES continuation of a solve (core/gmres.h; docs/lpm_solver.md, "Krylov
+// acceleration"): the remaining sum X of sources solves (I - K) X = B, B the last pass's
+// scattered source; then one physical pass deposits S from X.
+//
+// On the coarse grid of a two-grid solve (docs/multires.md) everything GMRES computes is a
+// prediction the cycle's next fine residual corrects, so B waits in half precision there,
+// and K is applied to each Krylov vector as it is stored: a batch's bins are decoded into
+// float slots before it is swept. GMRES then holds X and one product in float, beside the
+// half-precision basis, B and source sum.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "core/gmres.h"
+#include "core/half_buffer.h"
+#include "core/lpm_solve.h"
+#include "core/malloc_policy.h"
+#include "core/parallel.h"
+
+namespace lpm {
+
+// K v for a Krylov vector v held in half precision: sourceJobs(v)'s jobs in its order, in
+// batches of kHalfBatch, each batch's bins decoded into the jobs' float slots ([voxel][rgb])
+// before it is swept. The fold takes the jobs in the same order as run(), so the product is
+// K applied to v's exact value, bit for bit, without a full-length float copy of v.
+void LpmSolve::propagateHalf(const HalfBuffer& v, Tally& t, std::vector<float>& out) {
+    constexpr size_t kHalfBatch = 4;
+    if (halfSlots_.size() != kHalfBatch) {
+        halfSlots_.resize(kHalfBatch);
+        for (std::vector<float>& slot : halfSlots_) assignZeroed(slot, N_ * 3);
+    }
+    std::vector<int> jobBin;
+    const std::vector<Job> jobs = jobs_.slotJobs(halfSlots_, m_.albedo, jobBin);
+    const size_t rowLength = size_t(nb_) * 3;
+    const auto decodeBatch = [&](size_t b) {
+        for (size_t j = b * kHalfBatch; j < std::min(jobs.size(), (b + 1) * kHalfBatch); ++j) {
+            float* slot = halfSlots_[j % kHalfBatch].data();
+            const size_t first = size_t(jobBin[j]) * 3;
+            parallelForChunks(N_, 1 << 14, [&](size_t x0, size_t x1) {
+                for (size_t x = x0; x < x1; ++x)
+                    for (size_t c = 0; c < 3; ++c) slot[x * 3 + c] = v.at(x * rowLength + first + c);
+            });
+        }
+    };
+    runner_->runFilled(jobs, kHalfBatch, r_, t, decodeBatch, false, out);
+}
+
+// A v for a Krylov vector v in half precision. With a voxel-constant source of several
+// bins, K v from v as stored (propagateHalf); otherwise (one bin: a vector 1/24 the size;
+// slopes) A of v decoded into a float vector.
+HalfOperator LpmSolve::basisOperator(const LinearOperator& A) {
+    if (M_ != 1 || nb_ == 1)
+        return [&A](const HalfBuffer& v, std::vector<float>& outv) {
+            std::vector<float> x;
+            assignZeroed(x, v.size());
+            parallelForChunks(v.size(), 1 << 16, [&](size_t b0, size_t e0) {
+                for (size_t i = b0; i < e0; ++i) x[i] = v.at(i);
+            });
+            A(x, outv);
+        };
+    return [this](const HalfBuffer& v, std::vector<float>& outv) {
+        const auto tp = Clock::now();
+        std::fill(outv.begin(), outv.end(), 0.0f);
+        Tally t;
+        propagateHalf(v, t, outv);
+        recordPass(pass_++, t, tp, false);
+        parallelForChunks(outv.size(), 1 << 16, [&](size_t b0, size_t e0) {
+            for (size_t i = b0; i < e0; ++i) outv[i] = v.at(i) - outv[i];
+        });
+    };
+}
+
+// The source power that X fails to account for, |B + K X - X| (radiance per bin) times
+// sigma_s V w_d, mean over RGB; KX holds K X.
+template <class Rhs>
+double LpmSolve::unaccounted(const Rhs& B, const std::vector<float>& KX, const std::vector<float>& X) const {
+    double miss = 0;
+    for (int d = 0; d < nb_; ++d)
+        for (size_t x = 0; x < N_; ++x)
+            for (int c = 0; c < 3; ++c) {
+                const size_t i = (x * nb_ + d) * M_ * 3 + c;
+                miss += std::fabs(double(B(i)) + KX[i] - X[i]) * m_.sigmaT[x] * m_.albedo[c] * ff_->binWeight(d) * V_;
+            }
+    return miss / 3.0;
+}
+
+// Remaining sum X = sum_{j >= 1} U_{k+j} solves (I - K) X = B, B = `next`, where K is one
+// propagation pass (source -> next unshot), in the inner product <a, b> = sum_d w_d a.b.
+void LpmSolve::finishWithGmres() {
+    const size_t len = next_.size();
+    // One voxel's weights (they repeat): slopes enter with the weight of their L2 norm over
+    // the voxel (Int xi^2 = 1/12).
+    std::vector<double> binW(perVoxel_);
+    for (size_t i = 0; i < perVoxel_; ++i)
+        binW[i] = ff_->binWeight(int((i / (3 * M_)) % nb_)) * ((i / 3) % M_ == 0 ? 1.0 : 1.0 / 12);
+    // B takes next's storage; the previous pass's source is no longer needed. K v is
+    // deposited into A v's own storage, then A v = v - K v in place: no buffer for K v.
+    std::vector<float> B = std::move(next_);
+    unshot_ = std::vector<float>();
+    const double bNorm = std::sqrt(weightedDot(binW, B, B));
+    // A coarse solve's B, and its sum of the sources so far (the two-grid cycle's tail, which
+    // is rounded to half anyway), wait in half precision while GMRES holds its vectors.
+    const bool coarse = initialSource_ != nullptr;
+    HalfBuffer halfB, heldSum;
+    if (coarse) {
+        halfB = HalfBuffer::encode(B);
+        B = std::vector<float>();
+        heldSum = HalfBuffer::encode(res_.sourceSum);
+        res_.sourceSum = std::vector<float>();
+    }
+    returnFreedHeapPages();  // GMRES's vectors come next: the fine passes' freed buffers go back
+    const LinearOperator A = [&](const std::vector<float>& v, std::vector<float>& outv) {  // A v = v - K v
+        const auto tp = Clock::now();
+        std::fill(outv.begin(), outv.end(), 0.0f);
+        Tally t;
+        runner_->run(sourceJobs(v), r_, t, false, outv);
+        recordPass(pass_++, t, tp, false);
+        parallelForChunks(len, 1 << 16, [&](size_t b0, size_t e0) {
+            for (size_t i = b0; i < e0; ++i) outv[i] = v[i] - outv[i];
+        });
+    };
+    // Krylov vectors are the big memory cost: cap their number by the memory budget. They
+    // are held in half precision (core/gmres.h).
+    const size_t vecBytes = len * sizeof(std::uint16_t);
+    const int restart = int(std::clamp<size_t>(size_t(s_.krylovBytes / double(std::max<size_t>(1, vecBytes))), 4,
+                                               size_t(std::max(4, s_.krylovRestart))));
+    std::vector<float> X;
+    const auto budget = [&] { return pass_ < s_.maxOrders; };
+    const double target = s_.tolerance * 0.1 * bNorm;
+    GmresReport rep;
+    if (coarse) rep = solveGmres(A, basisOperator(A), halfB, binW, target, restart, budget, X);
+    else rep = solveGmres(A, B, binW, target, restart, budget, X);
+    halfSlots_ = std::vector<std::vector<float>>();
+    // Negative round-off in X would act as a negative source: clamp it.
+    for (size_t i = 0; i < len; i += 3 * M_)
+        for (int c = 0; c < 3; ++c) X[i + c] = std::max(0.0f, X[i + c]);
+    // Final physical pass: deposit S from the whole remaining sum.
+    const auto tp = Clock::now();
+    assignZeroed(next_, len);  // GMRES's vectors are freed by now
+    if (coarse) {
+        assignZeroed(res_.sourceSum, heldSum.size());
+        parallelForChunks(heldSum.size(), 1 << 16, [&](size_t b0, size_t e0) {
+            for (size_t i = b0; i < e0; ++i) res_.sourceSum[i] = heldSum.at(i);
+        });
+        heldSum = HalfBuffer();
+    }
+    addToSourceSum(X);
+    Tally t;
+    runner_->run(sourceJobs(X), r_, t, depositSh_, next_);
+    recordPass(pass_, t, tp);
+    res_.passes.back().scattered = coarse ? unaccounted([&](size_t i) { return halfB.at(i); }, next_, X)
+                                          : unaccounted([&](size_t i) { return B[i]; }, next_, X);
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "GMRES: %d passes (restart %d), relative residual %.3g", rep.matvecs, restart,
+                  bNorm > 0 ? rep.residualNorm / bNorm : 0.0);
+    res_.decisions.push_back(buf);
+    res_.converged = rep.converged;
+}
+
+}  // namespace lpm
