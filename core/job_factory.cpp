@@ -101,7 +101,7 @@ std::vector<Job> JobFactory::sourceJobs(const std::vector<float>& src, int momen
 }
 
 std::vector<Job> JobFactory::slotJobs(const std::vector<std::vector<float>>& slots, const RGB& albedo,
-                                     std::vector<int>& jobBin) const {
+                                      std::vector<int>& jobBin) const {
     std::vector<Job> jobs;
     jobBin.clear();
     for (int i = 0; i < quad_.count(); ++i) {

@@ -13,41 +13,16 @@
 
 #include "core/gmres.h"
 #include "core/half_buffer.h"
+#include "core/half_source_pass.h"
 #include "core/lpm_solve.h"
 #include "core/malloc_policy.h"
 #include "core/parallel.h"
 
 namespace lpm {
 
-// K v for a Krylov vector v held in half precision: sourceJobs(v)'s jobs in its order, in
-// batches of kHalfBatch, each batch's bins decoded into the jobs' float slots ([voxel][rgb])
-// before it is swept. The fold takes the jobs in the same order as run(), so the product is
-// K applied to v's exact value, bit for bit, without a full-length float copy of v.
-void LpmSolve::propagateHalf(const HalfBuffer& v, Tally& t, std::vector<float>& out) {
-    constexpr size_t kHalfBatch = 4;
-    if (halfSlots_.size() != kHalfBatch) {
-        halfSlots_.resize(kHalfBatch);
-        for (std::vector<float>& slot : halfSlots_) assignZeroed(slot, N_ * 3);
-    }
-    std::vector<int> jobBin;
-    const std::vector<Job> jobs = jobs_.slotJobs(halfSlots_, m_.albedo, jobBin);
-    const size_t rowLength = size_t(nb_) * 3;
-    const auto decodeBatch = [&](size_t b) {
-        for (size_t j = b * kHalfBatch; j < std::min(jobs.size(), (b + 1) * kHalfBatch); ++j) {
-            float* slot = halfSlots_[j % kHalfBatch].data();
-            const size_t first = size_t(jobBin[j]) * 3;
-            parallelForChunks(N_, 1 << 14, [&](size_t x0, size_t x1) {
-                for (size_t x = x0; x < x1; ++x)
-                    for (size_t c = 0; c < 3; ++c) slot[x * 3 + c] = v.at(x * rowLength + first + c);
-            });
-        }
-    };
-    runner_->runFilled(jobs, kHalfBatch, r_, t, decodeBatch, false, out);
-}
-
 // A v for a Krylov vector v in half precision. With a voxel-constant source of several
-// bins, K v from v as stored (propagateHalf); otherwise (one bin: a vector 1/24 the size;
-// slopes) A of v decoded into a float vector.
+// bins, K v from v as stored, in batches of 4 jobs (core/half_source_pass.h); otherwise (one bin: a vector 1/24 the
+// size; slopes) A of v decoded into a float vector.
 HalfOperator LpmSolve::basisOperator(const LinearOperator& A) {
     if (M_ != 1 || nb_ == 1)
         return [&A](const HalfBuffer& v, std::vector<float>& outv) {
@@ -58,11 +33,12 @@ HalfOperator LpmSolve::basisOperator(const LinearOperator& A) {
             });
             A(x, outv);
         };
+    halfSlots_.resize(4);
     return [this](const HalfBuffer& v, std::vector<float>& outv) {
         const auto tp = Clock::now();
         std::fill(outv.begin(), outv.end(), 0.0f);
         Tally t;
-        propagateHalf(v, t, outv);
+        propagateHalfSource(*runner_, jobs_, v, nb_, m_.albedo, r_, halfSlots_, t, outv);
         recordPass(pass_++, t, tp, false);
         parallelForChunks(outv.size(), 1 << 16, [&](size_t b0, size_t e0) {
             for (size_t i = b0; i < e0; ++i) outv[i] = v.at(i) - outv[i];

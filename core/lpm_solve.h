@@ -52,7 +52,6 @@ private:
     void runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs = nullptr);
     // The GMRES continuation (core/krylov_pass.cpp).
     void finishWithGmres();
-    void propagateHalf(const HalfBuffer& v, Tally& t, std::vector<float>& out);
     HalfOperator basisOperator(const LinearOperator& A);
     template <class Rhs>
     double unaccounted(const Rhs& B, const std::vector<float>& KX, const std::vector<float>& X) const;
@@ -90,7 +89,8 @@ private:
         explicit SeparableState(const Medium& fine);
     };
     std::unique_ptr<SeparableState> sep_;
-    std::vector<std::vector<float>> halfSlots_;  ///< propagateHalf's decoded bins [slot][voxel][rgb]
+    std::vector<std::vector<float>>
+        halfSlots_;  ///< a half-precision source's decoded bins [slot][voxel][rgb] (core/half_source_pass.h)
     int pass_ = 1;
     float tailFactor_ = 1.0f;        ///< next's weight in the source sum: 1, or 1/(1 - rho) when extrapolated
     double extrapolatedError_ = -1;  ///< the extrapolation's estimated error (power), when it stopped the solve

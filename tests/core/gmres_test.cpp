@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "core/half_buffer.h"
 #include "core/parallel.h"
 #include "core/rng.h"
 
@@ -118,6 +119,42 @@ TEST(Gmres, ConvergesFarBelowTheBasisPrecision) {
         EXPECT_TRUE(rep.converged) << "restart " << restart;
         EXPECT_LE(trueResidual, 1e-6 * bNorm) << "restart " << restart;
         EXPECT_NEAR(rep.residualNorm, trueResidual, 1e-3 * trueResidual) << "restart " << restart;
+    }
+}
+
+// B in half precision with the operator applied to the Krylov vectors as stored: the same
+// products on the same values as the float overload given B's decoded value, so the same X
+// bit for bit, at restarts 40 and 4; and it solves the system of the rounded B.
+TEST(Gmres, HalfRhsAndStoredBasisGiveTheFloatSolveOfTheRoundedRhs) {
+    const int n = 80;
+    const auto K = makeSystem(n, 0.95, 21);
+    const HalfBuffer halfB = HalfBuffer::encode(randomRhs(n, 22));
+    std::vector<float> b(n);
+    for (int i = 0; i < n; ++i) b[i] = halfB.at(size_t(i));
+    const std::vector<double> w = repeatingWeights(n, 1.0, 4);
+    const double bNorm = std::sqrt(weightedDot(w, b, b));
+    const LinearOperator A = operatorOf(K);
+    int basisProducts = 0;
+    const HalfOperator onBasis = [&](const HalfBuffer& v, std::vector<float>& y) {
+        std::vector<float> x(v.size());
+        for (size_t i = 0; i < v.size(); ++i) x[i] = v.at(i);
+        ++basisProducts;
+        A(x, y);
+    };
+    for (int restart : {40, 4}) {
+        std::vector<float> xFloat, xHalf;
+        const GmresReport rf = solveGmres(
+            A, b, w, 1e-6 * bNorm, restart, [] { return true; }, xFloat);
+        basisProducts = 0;
+        const GmresReport rh = solveGmres(
+            A, onBasis, halfB, w, 1e-6 * bNorm, restart, [] { return true; }, xHalf);
+        EXPECT_TRUE(rh.converged) << "restart " << restart;
+        EXPECT_EQ(rh.matvecs, rf.matvecs) << "restart " << restart;
+        EXPECT_GT(basisProducts, 0);
+        EXPECT_LT(basisProducts, rh.matvecs);  // the true residuals' products go to A
+        EXPECT_EQ(rh.rhsNorm, rf.rhsNorm);
+        EXPECT_EQ(rh.residualNorm, rf.residualNorm);
+        EXPECT_TRUE(xHalf == xFloat) << "restart " << restart;
     }
 }
 
