@@ -3,10 +3,10 @@
 // scattered source; then one physical pass deposits S from X.
 //
 // On the coarse grid of a two-grid solve (docs/multires.md) everything GMRES computes is a
-// prediction the cycle's next fine residual corrects, so B waits in half precision there,
-// and K is applied to each Krylov vector as it is stored: a batch's bins are decoded into
-// float slots before it is swept. GMRES then holds X and one product in float, beside the
-// half-precision basis, B and source sum.
+// prediction the cycle's next fine residual corrects. With a voxel-constant source of
+// several bins, B waits in half precision there, and K is applied to each Krylov vector as
+// it is stored: a batch's bins are decoded into float slots before it is swept. GMRES then
+// holds X and one product in float, beside the half-precision basis, B and source sum.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -20,19 +20,9 @@
 
 namespace lpm {
 
-// A v for a Krylov vector v in half precision. With a voxel-constant source of several
-// bins, K v from v as stored, in batches of 4 jobs (core/half_source_pass.h); otherwise (one bin: a vector 1/24 the
-// size; slopes) A of v decoded into a float vector.
-HalfOperator LpmSolve::basisOperator(const LinearOperator& A) {
-    if (M_ != 1 || nb_ == 1)
-        return [&A](const HalfBuffer& v, std::vector<float>& outv) {
-            std::vector<float> x;
-            assignZeroed(x, v.size());
-            parallelForChunks(v.size(), 1 << 16, [&](size_t b0, size_t e0) {
-                for (size_t i = b0; i < e0; ++i) x[i] = v.at(i);
-            });
-            A(x, outv);
-        };
+// A v for a Krylov vector v in half precision, K v formed from v as stored, in batches of
+// 4 jobs (core/half_source_pass.h).
+HalfOperator LpmSolve::basisOperator() {
     halfSlots_.resize(4);
     return [this](const HalfBuffer& v, std::vector<float>& outv) {
         const auto tp = Clock::now();
@@ -74,13 +64,16 @@ void LpmSolve::finishWithGmres() {
     std::vector<float> B = std::move(next_);
     unshot_ = std::vector<float>();
     const double bNorm = std::sqrt(weightedDot(binW, B, B));
-    // A coarse solve's B, and its sum of the sources so far (the two-grid cycle's tail, which
-    // is rounded to half anyway), wait in half precision while GMRES holds its vectors.
-    const bool coarse = initialSource_ != nullptr;
+    // A coarse solve's sum of the sources so far (the two-grid cycle's tail, which is
+    // rounded to half anyway) waits in half precision while GMRES holds its vectors; so does
+    // its B where the source has bins (with one, the vectors are 1/24 the size).
+    const bool coarse = initialSource_ != nullptr, halfKrylov = coarse && M_ == 1 && nb_ > 1;
     HalfBuffer halfB, heldSum;
-    if (coarse) {
+    if (halfKrylov) {
         halfB = HalfBuffer::encode(B);
         B = std::vector<float>();
+    }
+    if (coarse) {
         heldSum = HalfBuffer::encode(res_.sourceSum);
         res_.sourceSum = std::vector<float>();
     }
@@ -104,7 +97,7 @@ void LpmSolve::finishWithGmres() {
     const auto budget = [&] { return pass_ < s_.maxOrders; };
     const double target = s_.tolerance * 0.1 * bNorm;
     GmresReport rep;
-    if (coarse) rep = solveGmres(A, basisOperator(A), halfB, binW, target, restart, budget, X);
+    if (halfKrylov) rep = solveGmres(A, basisOperator(), halfB, binW, target, restart, budget, X);
     else rep = solveGmres(A, B, binW, target, restart, budget, X);
     halfSlots_ = std::vector<std::vector<float>>();
     // Negative round-off in X would act as a negative source: clamp it.
@@ -124,8 +117,8 @@ void LpmSolve::finishWithGmres() {
     Tally t;
     runner_->run(sourceJobs(X), r_, t, depositSh_, next_);
     recordPass(pass_, t, tp);
-    res_.passes.back().scattered = coarse ? unaccounted([&](size_t i) { return halfB.at(i); }, next_, X)
-                                          : unaccounted([&](size_t i) { return B[i]; }, next_, X);
+    res_.passes.back().scattered = halfKrylov ? unaccounted([&](size_t i) { return halfB.at(i); }, next_, X)
+                                              : unaccounted([&](size_t i) { return B[i]; }, next_, X);
     char buf[200];
     std::snprintf(buf, sizeof buf, "GMRES: %d passes (restart %d), relative residual %.3g", rep.matvecs, restart,
                   bNorm > 0 ? rep.residualNorm / bNorm : 0.0);

@@ -52,7 +52,7 @@ private:
     void runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs = nullptr);
     // The GMRES continuation (core/krylov_pass.cpp).
     void finishWithGmres();
-    HalfOperator basisOperator(const LinearOperator& A);
+    HalfOperator basisOperator();
     template <class Rhs>
     double unaccounted(const Rhs& B, const std::vector<float>& KX, const std::vector<float>& X) const;
     void clampNegativeLinear();
