@@ -30,7 +30,7 @@ struct LpmSettings {
     bool krylov = true;         ///< allow GMRES acceleration when source iteration would be slow
     int krylovAfter = 25;       ///< switch when plain iteration would need more than this many passes
     int coarseKrylovAfter = 8;  ///< the same on the multi-resolution coarse grid (its passes are cheap)
-    int krylovRestart = 40;     ///< GMRES restart length (capped by krylovBytes, at least 4)
+    int krylovRestart = 40;     ///< GMRES restart length (capped by krylovBytes, down to 3)
     double krylovBytes = double(std::size_t(2) << 30);  ///< memory GMRES's Krylov vectors may take, in
                                                         ///< half precision (the two-grid solve gives its
                                                         ///< coarse grid 64 B per fine stored voxel)
