@@ -2,6 +2,7 @@
 #include "core/gmres.h"
 
 #include <cmath>
+#include <utility>
 
 #include "core/half_buffer.h"
 #include "core/malloc_policy.h"
@@ -172,19 +173,22 @@ void formResidual(const Rhs& B, const std::vector<float>* Ax, std::vector<float>
 template <class Rhs>
 GmresReport runCycles(const LinearOperator& A, const HalfOperator* onBasis, const Rhs& B,
                       const std::vector<double>& weights, double target, int restart,
-                      const std::function<bool()>& mayApply, std::vector<float>& X) {
+                      const std::function<bool()>& mayApply, std::vector<float>& X, std::vector<float> firstResidual) {
     const size_t len = B.size();
     GmresReport rep;
     const std::vector<double> wx = lanedWeights(weights);
     // Full-length float vectors: X, w (a product, orthogonalised into the next Krylov
     // vector) and, without onBasis, v (the vector the operator is applied to), on huge
     // pages: each is tens of MiB on a coarse grid. The basis is kept in half precision.
-    assignZeroed(X, len);
+    const bool fromGuess = firstResidual.size() == len;
+    if (!fromGuess) assignZeroed(X, len);
     std::vector<float> v, w;
-    assignZeroed(w, len);
     if (!onBasis) assignZeroed(v, len);
     std::vector<float>& r = onBasis ? w : v;  // the residual, each cycle's first vector
-    formResidual(B, nullptr, r);
+    if (fromGuess) r.swap(firstResidual);     // the caller's storage
+    if (w.size() != len) assignZeroed(w, len);
+    if (!fromGuess) formResidual(B, nullptr, r);
+    firstResidual = std::vector<float>();
     rep.rhsNorm = std::sqrt(dotFloat(wx, r, r));
     std::vector<HalfBuffer> basis;
     double rNorm = rep.rhsNorm;
@@ -230,13 +234,13 @@ GmresReport runCycles(const LinearOperator& A, const HalfOperator* onBasis, cons
 
 GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, const std::vector<double>& weights,
                        double target, int restart, const std::function<bool()>& mayApply, std::vector<float>& X) {
-    return runCycles(A, nullptr, FloatRhs{B}, weights, target, restart, mayApply, X);
+    return runCycles(A, nullptr, FloatRhs{B}, weights, target, restart, mayApply, X, {});
 }
 
 GmresReport solveGmres(const LinearOperator& A, const HalfOperator& onBasis, const HalfBuffer& B,
                        const std::vector<double>& weights, double target, int restart,
-                       const std::function<bool()>& mayApply, std::vector<float>& X) {
-    return runCycles(A, &onBasis, B, weights, target, restart, mayApply, X);
+                       const std::function<bool()>& mayApply, std::vector<float>& X, std::vector<float> firstResidual) {
+    return runCycles(A, &onBasis, B, weights, target, restart, mayApply, X, std::move(firstResidual));
 }
 
 }  // namespace lpm

@@ -35,10 +35,13 @@ GmresReport solveGmres(const LinearOperator& A, const std::vector<float>& B, con
 /// The same for B held in half precision, with the Krylov vectors handed to `onBasis` as
 /// they are stored (A still forms the true residual's product A X): GMRES then holds two
 /// float vectors (X and one product) instead of four (docs/lpm_solver.md, "Krylov
-/// acceleration"). onBasis(x) must equal A applied to x's exact value.
+/// acceleration"). onBasis(x) must equal A applied to x's exact value. With
+/// `firstResidual` (B - A X_0, formed by the caller; its storage is taken over), X holds
+/// X_0 on entry and GMRES starts from it; rhsNorm is then that residual's norm.
 GmresReport solveGmres(const LinearOperator& A, const HalfOperator& onBasis, const HalfBuffer& B,
                        const std::vector<double>& weights, double target, int restart,
-                       const std::function<bool()>& mayApply, std::vector<float>& X);
+                       const std::function<bool()>& mayApply, std::vector<float>& X,
+                       std::vector<float> firstResidual = {});
 
 /// <a, b>_w summed in fixed chunks (thread-count independent); w repeats with period w.size().
 double weightedDot(const std::vector<double>& w, const std::vector<float>& a, const std::vector<float>& b);

@@ -36,6 +36,32 @@ HalfOperator LpmSolve::basisOperator() {
     };
 }
 
+// On the coarse grid GMRES solves for the whole tail T = S + X (S the sources so far):
+// (I - K) T = B' with B' = B + (I - K) S, from T_0 = S, so S need not wait beside its
+// vectors. One more product, K S (a pass; `sumTally` its tally, which the final pass's
+// sweep of T counts again). B' is held in half precision; the first residual is that of
+// the rounded system, B'_h - A S, as GMRES's restarts form it.
+void LpmSolve::startFromSourceSum(std::vector<float>& B, HalfBuffer& halfB, std::vector<float>& X,
+                                  std::vector<float>& firstResidual, Tally& sumTally) {
+    const size_t len = B.size();
+    X = std::move(res_.sourceSum);
+    const auto tp = Clock::now();
+    assignZeroed(firstResidual, len);
+    runner_->run(sourceJobs(X), r_, sumTally, false, firstResidual);  // K S
+    recordPass(pass_++, sumTally, tp, false);
+    parallelForChunks(len, 1 << 16, [&](size_t b0, size_t e0) {
+        for (size_t i = b0; i < e0; ++i) {
+            firstResidual[i] = X[i] - firstResidual[i];  // A S, as the operator forms it
+            B[i] += firstResidual[i];
+        }
+    });
+    halfB = HalfBuffer::encode(B);
+    B = std::vector<float>();
+    parallelForChunks(len, 1 << 16, [&](size_t b0, size_t e0) {
+        for (size_t i = b0; i < e0; ++i) firstResidual[i] = halfB.at(i) - firstResidual[i];
+    });
+}
+
 // The source power that X fails to account for, |B + K X - X| (radiance per bin) times
 // sigma_s V w_d, mean over RGB; KX holds K X.
 template <class Rhs>
@@ -65,15 +91,15 @@ void LpmSolve::finishWithGmres() {
     unshot_ = std::vector<float>();
     const double bNorm = std::sqrt(weightedDot(binW, B, B));
     // A coarse solve's sum of the sources so far (the two-grid cycle's tail, which is
-    // rounded to half anyway) waits in half precision while GMRES holds its vectors; so does
-    // its B where the source has bins (with one, the vectors are 1/24 the size).
+    // rounded to half anyway) waits in half precision while GMRES holds its vectors; where
+    // the source has bins (with one, the vectors are 1/24 the size), GMRES starts from it
+    // instead, and B is held in half precision.
     const bool coarse = initialSource_ != nullptr, halfKrylov = coarse && M_ == 1 && nb_ > 1;
     HalfBuffer halfB, heldSum;
-    if (halfKrylov) {
-        halfB = HalfBuffer::encode(B);
-        B = std::vector<float>();
-    }
-    if (coarse) {
+    std::vector<float> X, firstResidual;
+    Tally sumTally;  // the sweep of the source sum X_0
+    if (halfKrylov) startFromSourceSum(B, halfB, X, firstResidual, sumTally);
+    else if (coarse) {
         heldSum = HalfBuffer::encode(res_.sourceSum);
         res_.sourceSum = std::vector<float>();
     }
@@ -94,11 +120,11 @@ void LpmSolve::finishWithGmres() {
     const size_t vecBytes = len * sizeof(std::uint16_t);
     const int restart = int(std::clamp<size_t>(size_t(s_.krylovBytes / double(std::max<size_t>(1, vecBytes))), 3,
                                                size_t(std::max(4, s_.krylovRestart))));
-    std::vector<float> X;
     const auto budget = [&] { return pass_ < s_.maxOrders; };
     const double target = s_.tolerance * 0.1 * bNorm;
     GmresReport rep;
-    if (halfKrylov) rep = solveGmres(A, basisOperator(), halfB, binW, target, restart, budget, X);
+    if (halfKrylov)
+        rep = solveGmres(A, basisOperator(), halfB, binW, target, restart, budget, X, std::move(firstResidual));
     else rep = solveGmres(A, B, binW, target, restart, budget, X);
     halfSlots_ = std::vector<std::vector<float>>();
     // Negative round-off in X would act as a negative source: clamp it.
@@ -106,8 +132,9 @@ void LpmSolve::finishWithGmres() {
         for (int c = 0; c < 3; ++c) X[i + c] = std::max(0.0f, X[i + c]);
     // Final physical pass: deposit S from the whole remaining sum.
     const auto tp = Clock::now();
-    assignZeroed(next_, len);  // GMRES's vectors are freed by now
-    if (coarse) {
+    assignZeroed(next_, len);                           // GMRES's vectors are freed by now
+    if (halfKrylov) assignZeroed(res_.sourceSum, len);  // X holds the whole tail
+    else if (coarse) {
         assignZeroed(res_.sourceSum, heldSum.size());
         parallelForChunks(heldSum.size(), 1 << 16, [&](size_t b0, size_t e0) {
             for (size_t i = b0; i < e0; ++i) res_.sourceSum[i] = heldSum.at(i);
@@ -117,6 +144,11 @@ void LpmSolve::finishWithGmres() {
     addToSourceSum(X);
     Tally t;
     runner_->run(sourceJobs(X), r_, t, depositSh_, next_);
+    for (int c = 0; c < 3; ++c) {  // X_0's part was counted in the passes before GMRES
+        t.injected[c] -= sumTally.injected[c];
+        t.absorbed[c] -= sumTally.absorbed[c];
+        t.escaped[c] -= sumTally.escaped[c];
+    }
     recordPass(pass_, t, tp);
     res_.passes.back().scattered = halfKrylov ? unaccounted([&](size_t i) { return halfB.at(i); }, next_, X)
                                               : unaccounted([&](size_t i) { return B[i]; }, next_, X);

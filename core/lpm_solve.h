@@ -53,6 +53,8 @@ private:
     // The GMRES continuation (core/krylov_pass.cpp).
     void finishWithGmres();
     HalfOperator basisOperator();
+    void startFromSourceSum(std::vector<float>& B, HalfBuffer& halfB, std::vector<float>& X,
+                            std::vector<float>& firstResidual, Tally& sumTally);
     template <class Rhs>
     double unaccounted(const Rhs& B, const std::vector<float>& KX, const std::vector<float>& X) const;
     void clampNegativeLinear();

@@ -158,6 +158,49 @@ TEST(Gmres, HalfRhsAndStoredBasisGiveTheFloatSolveOfTheRoundedRhs) {
     }
 }
 
+// From a guess X_0 with the caller's first residual B - A X_0 (the coarse grid's start from
+// its source sum): the solution of the same system, its true residual under the target,
+// and from a guess near it in fewer products than from zero (a wrong first residual, B's,
+// is caught by the restarts' true residuals, but costs products).
+TEST(Gmres, StartsFromAGuessWithTheCallersFirstResidual) {
+    const int n = 80;
+    const auto K = makeSystem(n, 0.95, 23);
+    const HalfBuffer halfB = HalfBuffer::encode(randomRhs(n, 24));
+    std::vector<float> b(n);
+    for (int i = 0; i < n; ++i) b[i] = halfB.at(size_t(i));
+    const std::vector<double> w = repeatingWeights(n, 1.0, 4);
+    const double bNorm = std::sqrt(weightedDot(w, b, b));
+    const LinearOperator A = operatorOf(K);
+    const HalfOperator onBasis = [&](const HalfBuffer& v, std::vector<float>& y) {
+        std::vector<float> x(v.size());
+        for (size_t i = 0; i < v.size(); ++i) x[i] = v.at(i);
+        A(x, y);
+    };
+    const std::vector<double> exact = directSolve(K, b);
+    const std::vector<float> noise = randomRhs(n, 25);
+    for (int restart : {40, 3}) {
+        std::vector<float> x0(n), x, ax(n), r(n);
+        for (int i = 0; i < n; ++i) x0[i] = float(exact[i] * (1 + 0.01 * (noise[i] - 0.5)));
+        A(x0, ax);
+        for (int i = 0; i < n; ++i) r[i] = b[i] - ax[i];
+        x = x0;
+        const GmresReport fromGuess = solveGmres(
+            A, onBasis, halfB, w, 1e-6 * bNorm, restart, [] { return true; }, x, r);
+        A(x, ax);
+        for (int i = 0; i < n; ++i) r[i] = b[i] - ax[i];
+        EXPECT_TRUE(fromGuess.converged) << "restart " << restart;
+        EXPECT_LE(std::sqrt(weightedDot(w, r, r)), 1e-6 * bNorm) << "restart " << restart;
+        for (int i = 0; i < n; ++i) EXPECT_NEAR(x[i], exact[i], 1e-4 * std::fabs(exact[i])) << i;
+        std::vector<float> fromZeroX, wrongX = x0;
+        const GmresReport fromZero = solveGmres(
+            A, onBasis, halfB, w, 1e-6 * bNorm, restart, [] { return true; }, fromZeroX);
+        const GmresReport wrong = solveGmres(
+            A, onBasis, halfB, w, 1e-6 * bNorm, restart, [] { return true; }, wrongX, b);
+        EXPECT_LT(fromGuess.matvecs, fromZero.matvecs) << "restart " << restart;
+        EXPECT_LT(fromGuess.matvecs, wrong.matvecs) << "restart " << restart;
+    }
+}
+
 TEST(Gmres, WeightedInnerProductAndBudget) {
     const int n = 30;
     const auto K = makeSystem(n, 0.9, 4);
