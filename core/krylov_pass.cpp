@@ -5,8 +5,9 @@
 // On the coarse grid of a two-grid solve (docs/multires.md) everything GMRES computes is a
 // prediction the cycle's next fine residual corrects. With a voxel-constant source of
 // several bins, B waits in half precision there, and K is applied to each Krylov vector as
-// it is stored: a batch's bins are decoded into float slots before it is swept. GMRES then
-// holds X and one product in float, beside the half-precision basis, B and source sum.
+// it is stored: a batch's bins are decoded into float slots before it is swept; and GMRES
+// starts from the source sum so far (startFromSourceSum). It then holds X and one product
+// in float, beside the half-precision basis and B.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
