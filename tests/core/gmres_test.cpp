@@ -76,6 +76,34 @@ std::vector<float> randomRhs(int n, std::uint64_t seed) {
     return b;
 }
 
+/// I - K of makeSystem(80, 0.95, seed), a right-hand side in half precision (b its decoded
+/// value), and the operator on Krylov vectors as stored, counting its products.
+struct HalfRhsSystem {
+    static constexpr int n = 80;
+    std::vector<std::vector<double>> K;
+    HalfBuffer halfB;
+    std::vector<float> b;
+    std::vector<double> w;
+    double bNorm;
+    LinearOperator A;
+    int basisProducts = 0;
+    HalfOperator onBasis;
+    explicit HalfRhsSystem(std::uint64_t seed)
+        : K(makeSystem(n, 0.95, seed)), halfB(HalfBuffer::encode(randomRhs(n, seed + 1))), b(n),
+          w(repeatingWeights(n, 1.0, 4)), bNorm(0), A(operatorOf(K)) {
+        for (int i = 0; i < n; ++i) b[i] = halfB.at(size_t(i));
+        bNorm = std::sqrt(weightedDot(w, b, b));
+        onBasis = [this](const HalfBuffer& v, std::vector<float>& y) {
+            std::vector<float> x(v.size());
+            for (size_t i = 0; i < v.size(); ++i) x[i] = v.at(i);
+            ++basisProducts;
+            A(x, y);
+        };
+    }
+    HalfRhsSystem(const HalfRhsSystem&) = delete;
+    HalfRhsSystem& operator=(const HalfRhsSystem&) = delete;
+};
+
 }  // namespace
 
 TEST(Gmres, MatchesDirectSolveWithAndWithoutRestarts) {
@@ -126,21 +154,8 @@ TEST(Gmres, ConvergesFarBelowTheBasisPrecision) {
 // products on the same values as the float overload given B's decoded value, so the same X
 // bit for bit, at restarts 40 and 4; and it solves the system of the rounded B.
 TEST(Gmres, HalfRhsAndStoredBasisGiveTheFloatSolveOfTheRoundedRhs) {
-    const int n = 80;
-    const auto K = makeSystem(n, 0.95, 21);
-    const HalfBuffer halfB = HalfBuffer::encode(randomRhs(n, 22));
-    std::vector<float> b(n);
-    for (int i = 0; i < n; ++i) b[i] = halfB.at(size_t(i));
-    const std::vector<double> w = repeatingWeights(n, 1.0, 4);
-    const double bNorm = std::sqrt(weightedDot(w, b, b));
-    const LinearOperator A = operatorOf(K);
-    int basisProducts = 0;
-    const HalfOperator onBasis = [&](const HalfBuffer& v, std::vector<float>& y) {
-        std::vector<float> x(v.size());
-        for (size_t i = 0; i < v.size(); ++i) x[i] = v.at(i);
-        ++basisProducts;
-        A(x, y);
-    };
+    HalfRhsSystem sys(21);
+    auto& [K, halfB, b, w, bNorm, A, basisProducts, onBasis] = sys;
     for (int restart : {40, 4}) {
         std::vector<float> xFloat, xHalf;
         const GmresReport rf = solveGmres(
@@ -163,19 +178,9 @@ TEST(Gmres, HalfRhsAndStoredBasisGiveTheFloatSolveOfTheRoundedRhs) {
 // and from a guess near it in fewer products than from zero (a wrong first residual, B's,
 // is caught by the restarts' true residuals, but costs products).
 TEST(Gmres, StartsFromAGuessWithTheCallersFirstResidual) {
-    const int n = 80;
-    const auto K = makeSystem(n, 0.95, 23);
-    const HalfBuffer halfB = HalfBuffer::encode(randomRhs(n, 24));
-    std::vector<float> b(n);
-    for (int i = 0; i < n; ++i) b[i] = halfB.at(size_t(i));
-    const std::vector<double> w = repeatingWeights(n, 1.0, 4);
-    const double bNorm = std::sqrt(weightedDot(w, b, b));
-    const LinearOperator A = operatorOf(K);
-    const HalfOperator onBasis = [&](const HalfBuffer& v, std::vector<float>& y) {
-        std::vector<float> x(v.size());
-        for (size_t i = 0; i < v.size(); ++i) x[i] = v.at(i);
-        A(x, y);
-    };
+    HalfRhsSystem sys(23);
+    const int n = HalfRhsSystem::n;
+    auto& [K, halfB, b, w, bNorm, A, basisProducts, onBasis] = sys;
     const std::vector<double> exact = directSolve(K, b);
     const std::vector<float> noise = randomRhs(n, 25);
     for (int restart : {40, 3}) {
