@@ -6,6 +6,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <vector>
 
 #include <openvdb/io/File.h>
 #include <openvdb/tree/LeafManager.h>
@@ -51,39 +54,84 @@ Stencil stencilAt(const DenseBake& b, const openvdb::Coord& c) {
     return s;
 }
 
-/// A Vec3f grid on `topo`'s topology whose active voxels take value(denseIndex) (scale 1:
-/// the dense voxel holding the input voxel; otherwise interpolated between dense voxels).
-/// lightingTopology() keeps only voxels with solved values, so no stencil index is npos
-/// there; the density's own voxels always have one from readVolume's block.
-template <typename GridT = openvdb::Vec3SGrid, typename F>
-typename GridT::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake& b, F value) {
-    using ValueT = typename GridT::ValueType;
-    typename GridT::Ptr g = GridT::create(ValueT(0));
+/// An empty grid of type GridT with `topo`'s transform and active voxels, all values 0.
+template <typename GridT>
+typename GridT::Ptr zeroGridLike(const openvdb::Vec3SGrid& topo) {
+    typename GridT::Ptr g = GridT::create(typename GridT::ValueType(0));
     g->setTransform(topo.transform().copy());
     g->tree().topologyUnion(topo.tree());
-    openvdb::tree::LeafManager<typename GridT::TreeType> leaves(g->tree());
+    return g;
+}
+
+/// Where an input voxel's value comes from in the dense block: at scale 1 the dense voxel
+/// holding it (`single`); otherwise a trilinear stencil. `inside` is false where scale 1
+/// leaves the voxel outside the block.
+struct DensePlace {
+    Stencil stencil;
+    size_t single = Medium::npos;
+    bool interpolate = false, inside = false;
+};
+
+DensePlace densePlace(const DenseBake& b, const openvdb::Coord& c) {
+    DensePlace p;
     if (b.scale != 1.0 || b.affine) {
-        leaves.foreach ([&](typename GridT::TreeType::LeafNodeType& leaf, size_t) {
-            for (auto it = leaf.beginValueOn(); it; ++it) {
-                const Stencil s = stencilAt(b, it.getCoord());
-                ValueT v(0);
-                for (int k = 0; k < 8; ++k)
-                    if (s.weight[k] != 0.f && s.index[k] != Medium::npos) v += value(s.index[k]) * s.weight[k];
-                it.setValue(v);
-            }
-        });
-        return g;
+        p.stencil = stencilAt(b, c);
+        p.interpolate = p.inside = true;
+        return p;
     }
-    leaves.foreach ([&](typename GridT::TreeType::LeafNodeType& leaf, size_t) {
-        for (auto it = leaf.beginValueOn(); it; ++it) {
-            const openvdb::Coord d = it.getCoord() - b.blockMin;
-            if (d.x() < 0 || d.y() < 0 || d.z() < 0 || d.x() >= b.nx || d.y() >= b.ny || d.z() >= b.nz) continue;
-            const size_t i = b.index(d.x(), d.y(), d.z());
-            if (i == Medium::npos) continue;  // not for readVolume's blocks: every tile read from is stored
-            it.setValue(value(i));
+    const openvdb::Coord d = c - b.blockMin;
+    if (d.x() < 0 || d.y() < 0 || d.z() < 0 || d.x() >= b.nx || d.y() >= b.ny || d.z() >= b.nz) return p;
+    p.single = b.index(d.x(), d.y(), d.z());
+    p.inside = p.single != Medium::npos;  // always, for readVolume's blocks: every tile read from is stored
+    return p;
+}
+
+/// The value at a place from value(denseIndex).
+template <typename ValueT, typename F>
+ValueT valueAt(const DensePlace& p, F value) {
+    if (!p.interpolate) return value(p.single);
+    ValueT v(0);
+    for (int k = 0; k < 8; ++k)
+        if (p.stencil.weight[k] != 0.f && p.stencil.index[k] != Medium::npos)
+            v += value(p.stencil.index[k]) * p.stencil.weight[k];
+    return v;
+}
+
+/// `count` grids on `topo`'s topology whose active voxels take value(denseIndex, k), grid
+/// k (valueAt). One walk over the voxels finds each voxel's dense place for all the grids
+/// (the SH grids were filled one at a time: the sparse index lookups nine times over). lightingTopology() keeps only
+/// voxels with solved values, so no stencil index is npos there; the density's own voxels always have one from
+/// readVolume's block.
+template <typename GridT = openvdb::Vec3SGrid, typename F>
+std::vector<typename GridT::Ptr> fillGrids(const openvdb::Vec3SGrid& topo, const DenseBake& b, int count, F value) {
+    using TreeT = typename GridT::TreeType;
+    using ValueT = typename GridT::ValueType;
+    std::vector<typename GridT::Ptr> grids;
+    std::vector<std::unique_ptr<openvdb::tree::LeafManager<TreeT>>> leaves;
+    for (int k = 0; k < count; ++k) {
+        grids.push_back(zeroGridLike<GridT>(topo));
+        leaves.push_back(std::make_unique<openvdb::tree::LeafManager<TreeT>>(grids.back()->tree()));
+        if (leaves.back()->leafCount() != leaves.front()->leafCount())
+            throw std::logic_error("fillGrids: copies of one topology with different leaf counts");
+    }
+    if (count == 0) return grids;
+    leaves.front()->foreach ([&](typename TreeT::LeafNodeType& first, size_t n) {
+        std::vector<typename TreeT::LeafNodeType*> leaf(size_t(count), nullptr);
+        for (int k = 0; k < count; ++k) leaf[size_t(k)] = &leaves[size_t(k)]->leaf(n);
+        for (auto it = first.cbeginValueOn(); it; ++it) {
+            const DensePlace p = densePlace(b, it.getCoord());
+            if (!p.inside) continue;
+            for (int k = 0; k < count; ++k)
+                leaf[size_t(k)]->setValueOnly(it.pos(), valueAt<ValueT>(p, [&](size_t i) { return value(i, k); }));
         }
     });
-    return g;
+    return grids;
+}
+
+/// fillGrids of one grid.
+template <typename GridT = openvdb::Vec3SGrid, typename F>
+typename GridT::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake& b, F value) {
+    return fillGrids<GridT>(topo, b, 1, [&](size_t i, int) { return value(i); }).front();
 }
 
 double maxAbs(const openvdb::Vec3SGrid& g) {
@@ -116,16 +164,16 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
                                "renders dark there");
 
     openvdb::GridPtrVec grids;
+    std::vector<openvdb::Vec3SGrid::Ptr> sh;
+    if (b.sh)
+        sh = fillGrids(*topo, b, b.coeffs, [&](size_t i, int k) {
+            const float* p = b.sh + (i * size_t(b.coeffs) + size_t(k)) * 3;
+            return openvdb::Vec3s(p[0], p[1], p[2]);
+        });
+    else
+        for (int k = 0; k < b.coeffs; ++k) sh.push_back(topo->deepCopy());
     for (int k = 0; k < b.coeffs; ++k) {
-        openvdb::Vec3SGrid::Ptr g;
-        if (b.sh) {
-            g = fillGrid(*topo, b, [&](size_t i) {
-                const float* p = b.sh + (i * b.coeffs + k) * 3;
-                return openvdb::Vec3s(p[0], p[1], p[2]);
-            });
-        } else {
-            g = topo->deepCopy();
-        }
+        const openvdb::Vec3SGrid::Ptr& g = sh[size_t(k)];
         g->setName("sh_" + std::to_string(k));
         g->setGridClass(openvdb::GRID_UNKNOWN);    // order >= 1 terms go negative: not a fog volume
         g->setVectorType(openvdb::VEC_INVARIANT);  // colour, not a vector: DCCs must not rotate it
@@ -133,12 +181,12 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
         g->insertMeta("lpm:sh_index", openvdb::Int32Metadata(k));
         g->insertMeta("lpm:sh_l", openvdb::Int32Metadata(l));
         g->insertMeta("lpm:sh_m", openvdb::Int32Metadata(k - l * l - l));
-        rep.maxAbsValue = std::max(rep.maxAbsValue, maxAbs(*g));
+        if (o.half) rep.maxAbsValue = std::max(rep.maxAbsValue, maxAbs(*g));  // for its warning only
         grids.push_back(g);
     }
     openvdb::Vec3SGrid::Ptr scatterGrid, emissionGrid;
     {
-        openvdb::Vec3SGrid::Ptr s = topo->deepCopy();
+        openvdb::Vec3SGrid::Ptr s;
         if (b.scatter)
             s = fillGrid(*topo, b, [&](size_t i) {
                 const float* p = b.scatter + i * 3;
@@ -150,6 +198,7 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
                 const float y = float(kY00);
                 return openvdb::Vec3s(p[0] * y, p[1] * y, p[2] * y);
             });
+        else s = topo->deepCopy();
         s->setName("scatter");
         s->setGridClass(openvdb::GRID_FOG_VOLUME);
         s->setVectorType(openvdb::VEC_INVARIANT);
