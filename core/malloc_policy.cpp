@@ -5,11 +5,16 @@
 #include <cstdint>
 #include <cstdlib>  // defines __GLIBC__ on glibc
 
+#include <tbb/task_arena.h>
+
+#include "core/parallel.h"
+
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
 #if defined(__linux__)
 #include <sys/mman.h>
+#include <unistd.h>
 #endif
 
 namespace lpm {
@@ -62,6 +67,37 @@ void keepFreedBuffersForReuse() {
     mallopt(M_MMAP_THRESHOLD, 32 << 20);
     mallopt(M_TRIM_THRESHOLD, 256 << 20);
     adviseHeapOntoHugePages();
+#endif
+}
+
+void populateInParallel(void* p, std::size_t bytes) {
+#if defined(__linux__)
+#ifndef MADV_POPULATE_WRITE
+#define MADV_POPULATE_WRITE 23  // Linux 5.14; older kernels answer EINVAL (ignored)
+#endif
+    constexpr std::uintptr_t kPiece = std::uintptr_t(2) << 20;
+    if (!p || bytes < 2 * kPiece || maxThreads() < 2) return;
+    const std::uintptr_t page = std::uintptr_t(sysconf(_SC_PAGESIZE));
+    const std::uintptr_t lo = (reinterpret_cast<std::uintptr_t>(p) + page - 1) & ~(page - 1);
+    const std::uintptr_t hi = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(page - 1);
+    if (hi <= lo) return;
+    // Pieces on 2 MiB boundaries, so each huge page is faulted by one thread.
+    const std::uintptr_t first = (lo + kPiece) & ~(kPiece - 1);
+    const std::size_t pieces = 1 + (hi > first ? (hi - first + kPiece - 1) / kPiece : 0);
+    // Isolated: called inside a sweep job, the waiting thread must not start another job
+    // (whose buffers would then be alive beside this one's).
+    tbb::this_task_arena::isolate([&] {
+        parallelForChunks(pieces, 1, [&](std::size_t b, std::size_t e) {
+            for (std::size_t i = b; i < e; ++i) {
+                const std::uintptr_t a = i == 0 ? lo : first + (i - 1) * kPiece;
+                const std::uintptr_t z = std::min(hi, i == 0 ? first : a + kPiece);
+                if (z > a) madvise(reinterpret_cast<void*>(a), z - a, MADV_POPULATE_WRITE);  // errors ignored
+            }
+        });
+    });
+#else
+    (void)p;
+    (void)bytes;
 #endif
 }
 
