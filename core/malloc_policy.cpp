@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <vector>
 #include <cstdlib>  // defines __GLIBC__ on glibc
 
 #include <tbb/task_arena.h>
@@ -50,7 +51,30 @@ void adviseHeapOntoHugePages() {
 #endif
 }
 
+// Set once keepFreedBuffersForReuse has fixed the mmap threshold at 32 MiB.
+bool g_heapPolicy = false;
+
 }  // namespace
+
+void prepareHeapForSmallBlocks(std::size_t bytes) {
+#if LPM_GLIBC_HEAP
+    constexpr std::size_t kBlock = std::size_t(16) << 20, kMost = std::size_t(224) << 20;
+    if (!g_heapPolicy) return;
+    std::vector<void*> blocks;
+    for (std::size_t got = 0; got < std::min(bytes, kMost); got += kBlock) {
+        void* b = std::malloc(kBlock);
+        if (!b) break;
+        blocks.push_back(b);
+    }
+    for (void* b : blocks) {
+        adviseHugePages(b, kBlock);
+        populateInParallel(b, kBlock);
+    }
+    for (void* b : blocks) std::free(b);
+#else
+    (void)bytes;
+#endif
+}
 
 void returnFreedHeapPages() {
 #if LPM_GLIBC_HEAP  // a sanitizer's allocator keeps its own pools
@@ -66,6 +90,7 @@ void keepFreedBuffersForReuse() {
     // mapped block is freed (and trims the heap at twice it).
     mallopt(M_MMAP_THRESHOLD, 32 << 20);
     mallopt(M_TRIM_THRESHOLD, 256 << 20);
+    g_heapPolicy = true;
     adviseHeapOntoHugePages();
 #endif
 }

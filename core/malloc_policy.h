@@ -29,6 +29,16 @@ namespace lpm {
 /// 0.085 -> 0.055 s). Call once, before any thread starts; a no-op outside glibc.
 void keepFreedBuffersForReuse();
 
+/// Readies `bytes` (at most 224 MiB: the heap's top is trimmed above 256 MiB) of the
+/// main heap for many small blocks that come next, such as an output tree's leaves: the
+/// heap grows by that much in 16 MiB blocks, advised onto huge pages, faulted in by all
+/// the threads (populateInParallel) and freed again into the heap's top, where the small
+/// blocks are then carved from resident memory. Without it they fault in 4 KiB at a time
+/// on the thread that allocates them (plume-1M at SH order 2: nine output trees, 45k page
+/// faults, 0.4 s). Only after keepFreedBuffersForReuse (else glibc maps 16 MiB blocks on
+/// their own); a no-op outside glibc.
+void prepareHeapForSmallBlocks(std::size_t bytes);
+
 /// Gives the heap's free pages back to the kernel (glibc's malloc_trim): for the points
 /// where the buffers kept for reuse will not be used again for a while and larger ones,
 /// mapped outside the heap, come next (the two-grid solve's coarse orders). A no-op

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstddef>
 #include <memory>
 #include <stdexcept>
 #include <vector>
@@ -13,6 +14,7 @@
 #include <openvdb/io/File.h>
 #include <openvdb/tree/LeafManager.h>
 
+#include "core/malloc_policy.h"
 #include "core/sh.h"
 #include "vdb_io/atomic_file.h"
 #include "vdb_io/io_error.h"
@@ -134,6 +136,19 @@ typename GridT::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake& b,
     return fillGrids<GridT>(topo, b, 1, [&](size_t i, int) { return value(i); }).front();
 }
 
+/// The heap the output grids built on `topo` take: a leaf node and its value buffer per
+/// leaf, for the SH grids, the scatter grid, the emission grid (Vec3s) and the sun
+/// transmittances (float).
+std::size_t outputTreeBytes(const openvdb::Vec3SGrid& topo, const DenseBake& b) {
+    using Vec3Leaf = openvdb::Vec3STree::LeafNodeType;
+    using FloatLeaf = openvdb::FloatTree::LeafNodeType;
+    constexpr std::size_t kBlockOverhead = 16;  // glibc's chunk header, rounded
+    const std::size_t vec3Leaf = sizeof(Vec3Leaf) + Vec3Leaf::SIZE * sizeof(openvdb::Vec3s) + 2 * kBlockOverhead;
+    const std::size_t floatLeaf = sizeof(FloatLeaf) + FloatLeaf::SIZE * sizeof(float) + 2 * kBlockOverhead;
+    const std::size_t vec3Grids = std::size_t(b.coeffs) + 1 + (b.emission ? 1 : 0);
+    return topo.tree().leafCount() * (vec3Grids * vec3Leaf + b.sunTransmittance.size() * floatLeaf);
+}
+
 double maxAbs(const openvdb::Vec3SGrid& g) {
     double m = 0;
     for (auto it = g.cbeginValueOn(); it; ++it)
@@ -162,6 +177,8 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
                                " voxel(s) of the one-voxel shell around the density "
                                "have no solved S (solve block too small) and are left inactive: the volume's edge "
                                "renders dark there");
+
+    prepareHeapForSmallBlocks(outputTreeBytes(*topo, b));
 
     openvdb::GridPtrVec grids;
     std::vector<openvdb::Vec3SGrid::Ptr> sh;
