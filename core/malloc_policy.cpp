@@ -3,8 +3,8 @@
 
 #include <algorithm>
 #include <cstdint>
-#include <vector>
 #include <cstdlib>  // defines __GLIBC__ on glibc
+#include <vector>
 
 #include <tbb/task_arena.h>
 
