@@ -16,6 +16,12 @@
 //    its own heap, and a block a worker allocated went back to that worker's heap and
 //    stayed resident there (plume-1M at g = 0.6 peaked at 664 or 697 MiB from run to run,
 //    depending on which thread had allocated the deposit buffers; now 662-667).
+// 4. First touches shared out over the threads: a fresh huge page costs 1-3 ms to fault on
+//    this VM, so a large buffer zeroed by one thread (or a heap region that thousands of
+//    small blocks then fault 4 KiB at a time) kept the other thread waiting. New storage is
+//    faulted in by all the threads before it is written (`populateInParallel`, in
+//    `assignZeroed`), and the heap is readied so before the output trees are built
+//    (`prepareHeapForSmallBlocks`). docs/performance.md, session 24.
 #pragma once
 
 #include <cstddef>
