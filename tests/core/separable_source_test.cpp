@@ -8,6 +8,7 @@
 
 #include <cmath>
 
+#include "core/half_buffer.h"
 #include "core/multires.h"
 #include "core/parallel.h"
 #include "core/rng.h"
@@ -234,6 +235,48 @@ TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
                 want += double(withTail[(v * bins + d) * 3 + ch]) * f.sigmaT[v] * albedo[ch] * w[d] * f.voxelVolume();
     want /= 3;
     EXPECT_NEAR(s.power(map, w, albedo, f.voxelVolume()), want, std::ldexp(1.0, -11) * std::fabs(want));
+}
+
+// The power of a source over many coarse voxels (its sum is taken in parallel runs): the
+// in-order sum of the restricted source to double rounding, and the same bits for 1 and
+// 2 threads.
+TEST(SeparableSource, PowerOfALargeSourceIsTheSumForAnyThreadCount) {
+    Medium f;
+    f.allocate(64, 48, 40);
+    f.voxelSize = {0.5, 0.5, 0.5};
+    Pcg32 rng(21, 4);
+    for (float& s : f.sigmaT) s = float(2 * rng.uniform());
+    const Medium c = coarsen(f);
+    const FineCoarseMap map(f, c);
+    ASSERT_GT(map.sigmaSum.size(), size_t(8192));
+    const int bins = 3;
+    const std::vector<double> w = {0.7, 1.1, 1.3};
+    std::vector<float> shape(map.sigmaSum.size() * bins * 3), tail(shape.size());
+    for (float& x : shape) x = float(rng.uniform());
+    for (float& x : tail) x = float(rng.uniform()) - 0.4f;
+    SeparableSource s;
+    s.bins = bins;
+    s.shape = HalfBuffer::encode(shape);
+    s.offset.push_back(HalfBuffer::encode(tail));
+    const RGB albedo(0.9f, 0.8f, 0.7f);
+    const std::vector<float> r = s.restricted();
+    double want = 0;
+    for (size_t ci = 0; ci < map.sigmaSum.size(); ++ci)
+        for (int d = 0; d < bins; ++d)
+            for (int ch = 0; ch < 3; ++ch)
+                want += double(r[(ci * bins + d) * 3 + ch]) * map.sigmaSum[ci] * albedo[ch] * w[size_t(d)];
+    want *= f.voxelVolume() / 3.0;
+    double one = 0, two = 0;
+    {
+        ThreadLimit limit(1);
+        one = s.power(map, w, albedo, f.voxelVolume());
+    }
+    {
+        ThreadLimit limit(2);
+        two = s.power(map, w, albedo, f.voxelVolume());
+    }
+    EXPECT_NEAR(one, want, 1e-12 * std::fabs(want));
+    EXPECT_EQ(one, two);
 }
 
 // A bake with separable fine sources (auto with unshot bins and the two-grid solve) keeps
