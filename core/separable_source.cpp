@@ -45,53 +45,72 @@ FineCoarseMap::FineCoarseMap(const Medium& f, const Medium& c) {
 std::vector<float> SeparableSource::restricted() const {
     std::vector<float> out;
     assignZeroed(out, shape.size());
-    parallelForChunks(shape.size(), 1 << 16, [&](size_t b, size_t e) {
-        for (size_t i = b; i < e; ++i) out[i] = offset.empty() ? shape.at(i) : shape.at(i) + offsetAt(i);
+    const size_t nb = size_t(bins);
+    parallelForChunks(coarseVoxels, 1 << 11, [&](size_t pb, size_t pe) {
+        for (size_t p = pb; p < pe; ++p)
+            for (size_t d = 0; d < nb; ++d)
+                for (size_t c = 0; c < 3; ++c) {
+                    const size_t h = heldIndex(p, d, c);
+                    out[(p * nb + d) * 3 + c] = offset.empty() ? shape.at(h) : shape.at(h) + offsetAt(h);
+                }
     });
     return out;
 }
 
-float SeparableSource::offsetAt(size_t i) const {
+float SeparableSource::offsetAt(size_t h) const {
     float p = 0;
-    for (const HalfBuffer& part : offset) p += part.at(i);
+    for (const HalfBuffer& part : offset) p += part.at(h);
     return p;
+}
+
+HalfBuffer SeparableSource::holdByBin(const std::vector<float>& x, int bins) {
+    HalfBuffer out;
+    out.scale = HalfBuffer::scaleFor(largestFinite(x));
+    const float inverse = 1.0f / out.scale;  // a power of two: exact
+    assignZeroed(out.bits, x.size());
+    const size_t nb = size_t(bins), voxels = x.size() / (3 * nb);
+    parallelForChunks(voxels, 1 << 11, [&](size_t pb, size_t pe) {
+        for (size_t p = pb; p < pe; ++p)
+            for (size_t d = 0; d < nb; ++d)
+                for (size_t c = 0; c < 3; ++c)
+                    out.bits[(d * voxels + p) * 3 + c] = halfFromFloat(x[(p * nb + d) * 3 + c] * inverse);
+    });
+    return out;
 }
 
 namespace {
 
-/// Fine voxels [vb, ve) of fillBin: U_f(bin) from the parent's row (see the file comment).
+/// Coarse voxels [cb, ce) of fillBin: each parent's row decoded once and written to its
+/// children, U_f(bin) = R_C + (m_f - |R_C|) S_C + P_C (see the file comment). Every fine
+/// voxel has one parent, so each output is written once, by one thread.
 LPM_SIMD_CLONES
-void fillBinRange(size_t vb, size_t ve, const SeparableSource& u, const std::uint32_t* parent, int bin, float* out) {
-    const size_t nb = size_t(u.bins);
-    const float* off = u.offset.empty() ? nullptr : u.offsetOfBin.data();  // [coarse voxel][rgb]
-    for (size_t v = vb; v < ve; ++v) {
-        const std::uint32_t p = parent[v];
-        for (int c = 0; c < 3; ++c) {
-            if (p == FineCoarseMap::kNone) {
-                out[v * 3 + c] = 0.0f;
-                continue;
-            }
-            const size_t i = (p * nb + size_t(bin)) * 3 + size_t(c), pc = size_t(p) * 3 + size_t(c);
+void fillBinRange(size_t cb, size_t ce, const SeparableSource& u, const std::uint32_t* children, int bin, float* out) {
+    for (size_t p = cb; p < ce; ++p) {
+        const std::uint32_t* kids = &children[p * 8];
+        for (size_t c = 0; c < 3; ++c) {
+            const size_t i = u.heldIndex(p, size_t(bin), c), pc = p * 3 + c;
             const float r = u.shape.at(i);
             const float s = u.invAbs[pc] > 0 ? std::fabs(r) * u.invAbs[pc] : u.invWeight;
-            out[v * 3 + c] = r + (u.magnitude[v * 3 + c] - u.norm[pc]) * s + (off ? off[pc] : 0.0f);
+            const float n = u.norm[pc], off = u.offset.empty() ? 0.0f : u.offsetAt(i);
+            for (int k = 0; k < 8; ++k)
+                if (kids[k] != FineCoarseMap::kNone)
+                    out[size_t(kids[k]) * 3 + c] = r + (u.magnitude[size_t(kids[k]) * 3 + c] - n) * s + off;
         }
     }
 }
 
 }  // namespace
 
+// Fine voxels without a parent (outside the block) are set to 0 first; the parents' rows
+// are decoded once each (not once per child: 8x fewer half decodes, no P_C buffer).
 void SeparableSource::fillBin(const FineCoarseMap& map, int bin, float* out) const {
-    if (!offset.empty()) {
-        const size_t coarseVoxels = map.sigmaSum.size(), nb = size_t(bins);
-        if (offsetOfBin.size() != coarseVoxels * 3) assignZeroed(offsetOfBin, coarseVoxels * 3);
-        parallelForChunks(coarseVoxels, 1 << 12, [&](size_t cb, size_t ce) {
-            for (size_t ci = cb; ci < ce; ++ci)
-                for (size_t c = 0; c < 3; ++c) offsetOfBin[ci * 3 + c] = offsetAt((ci * nb + size_t(bin)) * 3 + c);
-        });
-    }
-    parallelForChunks(map.parent.size(), 1 << 14,
-                      [&](size_t vb, size_t ve) { fillBinRange(vb, ve, *this, map.parent.data(), bin, out); });
+    parallelForChunks(map.parent.size(), 1 << 14, [&](size_t vb, size_t ve) {
+        for (size_t v = vb; v < ve; ++v)
+            if (map.parent[v] == FineCoarseMap::kNone)
+                for (size_t c = 0; c < 3; ++c) out[v * 3 + c] = 0.0f;
+    });
+    parallelForChunks(map.sigmaSum.size(), 1 << 11,
+                      [&](size_t cb, size_t ce) { fillBinRange(cb, ce, *this, map.children.data(), bin, out); });
 }
 
 double SeparableSource::power(const FineCoarseMap& map, const std::vector<double>& binWeight, const RGB& albedo,
@@ -106,7 +125,7 @@ double SeparableSource::power(const FineCoarseMap& map, const std::vector<double
         for (size_t ci = vb; ci < ve; ++ci)
             for (int d = 0; d < bins; ++d)
                 for (int c = 0; c < 3; ++c) {
-                    const size_t i = (ci * size_t(bins) + size_t(d)) * 3 + size_t(c);
+                    const size_t i = heldIndex(ci, size_t(d), size_t(c));
                     const float r =
                         offset.empty() ? shape.at(i) : shape.at(i) + offsetAt(i);  // restricted(), not materialised
                     p += double(r) * map.sigmaSum[ci] * albedo[c] * binWeight[size_t(d)];
@@ -276,7 +295,8 @@ SeparableSource SeparableFold::finish() {
             for (size_t i = 0; i < nb * 3; ++i) r[i] = s > 0 ? r[i] / s : 0.0f;
         }
     });
-    out_.shape = HalfBuffer::encode(shapeSum_);
+    out_.coarseVoxels = map_.sigmaSum.size();
+    out_.shape = SeparableSource::holdByBin(shapeSum_, nb_);
     shapeSum_ = std::vector<float>();
     assignZeroed(out_.norm, map_.sigmaSum.size() * 3);
     assignZeroed(out_.invAbs, map_.sigmaSum.size() * 3);
@@ -288,7 +308,7 @@ SeparableSource SeparableFold::finish() {
             for (size_t c = 0; c < 3; ++c) {
                 double norm = 0, abs = 0;
                 for (size_t d = 0; d < nb; ++d) {
-                    const double r = out_.shape.at((ci * nb + d) * 3 + c);
+                    const double r = out_.shape.at(out_.heldIndex(ci, d, c));
                     norm += double(binWeight_[d]) * r;
                     abs += double(binWeight_[d]) * std::fabs(r);
                 }

@@ -41,31 +41,35 @@ struct FineCoarseMap {
     FineCoarseMap(const Medium& fine, const Medium& coarse);
 };
 
-/// A fine-grid source held separably (see the file comment).
+/// A fine-grid source held separably (see the file comment). The half-precision buffers
+/// are held bin-major, [bin][coarse voxel][rgb], so filling one bin (fillBin, 24 times a
+/// pass) reads 6 contiguous bytes per coarse voxel instead of one per 144-byte row.
 struct SeparableSource {
     int bins = 0;
+    size_t coarseVoxels = 0;
     std::vector<float> magnitude;  ///< m_f [fine voxel][rgb]
-    HalfBuffer shape;              ///< R_C [coarse voxel][bin][rgb], in half precision
+    HalfBuffer shape;              ///< R_C [bin][coarse voxel][rgb], in half precision
     std::vector<float> norm;       ///< |R_C| [coarse voxel][rgb] (signed)
     std::vector<float> invAbs;     ///< 1 / sum_d w_d |R_C(d)| [coarse voxel][rgb], 0 where R_C = 0
     float invWeight = 0;           ///< 1 / sum_d w_d: the isotropic shape
-    /// P_C [coarse voxel][bin][rgb], the sum of these parts (none: 0). Their sum is formed
-    /// one bin at a time (fillBin), never as a coarse buffer of floats.
+    /// P_C [bin][coarse voxel][rgb], the sum of these parts (none: 0). Their sum is formed
+    /// where it is read (fillBin, power, restricted), never as a coarse buffer of floats.
     std::vector<HalfBuffer> offset;
 
+    /// x [coarse voxel][bin][rgb] in half precision, held bin-major (as shape and offset).
+    static HalfBuffer holdByBin(const std::vector<float>& x, int bins);
+    /// Where (coarse voxel, bin, channel) lies in shape and offset.
+    size_t heldIndex(size_t voxel, size_t bin, size_t c) const { return (bin * coarseVoxels + voxel) * 3 + c; }
     /// The source restricted to the coarse grid, R_C + P_C [coarse voxel][bin][rgb] (what
     /// restrictSource gives for the full source).
     std::vector<float> restricted() const;
-    /// P_C of voxel-bin-channel index i, [coarse voxel][bin][rgb].
-    float offsetAt(size_t i) const;
-    /// out [fine voxel][rgb] = U_f(bin), 0 for voxels outside the block. Not reentrant: it
-    /// sums the offset's parts for the bin into offsetOfBin.
+    /// P_C at held index h (heldIndex).
+    float offsetAt(size_t h) const;
+    /// out [fine voxel][rgb] = U_f(bin), 0 for voxels outside the block.
     void fillBin(const FineCoarseMap& map, int bin, float* out) const;
     /// Source power sum_f sigma_s U_f(d) w_d V, mean over RGB (as LpmSolve::sourcePower).
     double power(const FineCoarseMap& map, const std::vector<double>& binWeight, const RGB& albedo,
                  double fineVoxelVolume) const;
-
-    mutable std::vector<float> offsetOfBin;  ///< fillBin's P_C(bin) [coarse voxel][rgb]
 };
 
 /// Folds a pass's per-direction deposits into the SH result and a separable next source:

@@ -194,14 +194,17 @@ TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
     std::vector<float> tail(c.voxelCount() * bins * 3), previous(tail.size());
     for (float& x : tail) x = float(rng.uniform()) - 0.3f;
     for (float& x : previous) x = 10.0f * (float(rng.uniform()) - 0.7f);
-    s.offset.push_back(HalfBuffer::encode(previous));
-    s.offset.push_back(HalfBuffer::encode(tail));
+    s.offset.push_back(SeparableSource::holdByBin(previous, bins));
+    s.offset.push_back(SeparableSource::holdByBin(tail, bins));
     std::vector<float> offsetSum(tail.size());
-    for (size_t i = 0; i < tail.size(); ++i) {
-        offsetSum[i] = s.offset[0].at(i) + s.offset[1].at(i);
-        ASSERT_EQ(s.offsetAt(i), offsetSum[i]) << i;
-        ASSERT_NEAR(offsetSum[i], previous[i] + tail[i], 11.0 / 2048) << i;  // half precision: 2^-11 relative
-    }
+    for (size_t p = 0; p < c.voxelCount(); ++p)
+        for (int d = 0; d < bins; ++d)
+            for (int ch = 0; ch < 3; ++ch) {
+                const size_t i = (p * bins + size_t(d)) * 3 + size_t(ch), h = s.heldIndex(p, size_t(d), size_t(ch));
+                offsetSum[i] = s.offset[0].at(h) + s.offset[1].at(h);
+                ASSERT_EQ(s.offsetAt(h), offsetSum[i]) << i;
+                ASSERT_NEAR(offsetSum[i], previous[i] + tail[i], 11.0 / 2048) << i;  // half: 2^-11 relative
+            }
     std::vector<float> withTail = U;
     addCoarse(f, c, offsetSum, bins, 1, 1.0f, withTail);
     std::vector<float> out(f.voxelCount() * 3);
@@ -256,10 +259,14 @@ TEST(SeparableSource, PowerOfALargeSourceIsTheSumForAnyThreadCount) {
     for (float& x : tail) x = float(rng.uniform()) - 0.4f;
     SeparableSource s;
     s.bins = bins;
-    s.shape = HalfBuffer::encode(shape);
-    s.offset.push_back(HalfBuffer::encode(tail));
+    s.coarseVoxels = map.sigmaSum.size();
+    s.shape = SeparableSource::holdByBin(shape, bins);
+    s.offset.push_back(SeparableSource::holdByBin(tail, bins));
     const RGB albedo(0.9f, 0.8f, 0.7f);
     const std::vector<float> r = s.restricted();
+    // Held bin-major, restricted in the solver's order [coarse voxel][bin][rgb]: each value
+    // the rounded shape plus the rounded tail of the same voxel, bin and channel.
+    for (size_t i = 0; i < r.size(); ++i) ASSERT_NEAR(r[i], shape[i] + tail[i], std::ldexp(1.0f, -10)) << i;
     double want = 0;
     for (size_t ci = 0; ci < map.sigmaSum.size(); ++ci)
         for (int d = 0; d < bins; ++d)
