@@ -109,6 +109,10 @@ void PassRunner::releaseBuffers() const { buffers_ = std::vector<std::vector<flo
 
 std::vector<float>& PassRunner::zeroedBuffer(size_t i, size_t len) const { return assignZeroed(buffers_[i], len); }
 
+std::vector<float>& PassRunner::depositBuffer(size_t i, size_t len) const {
+    return buffers_[i].size() == len ? buffers_[i] : assignZeroed(buffers_[i], len);
+}
+
 void PassRunner::reserveBuffers(size_t count, size_t len) const {
     if (buffers_.size() < count) buffers_.resize(count);
     for (size_t i = 0; i < count; ++i) reserveOnHugePages(buffers_[i], len);
@@ -177,7 +181,7 @@ void PassRunner::sweepInBatches(const std::vector<Job>& jobs, const std::vector<
                 std::vector<float*> phi;
                 for (size_t j = j0; j < j1; ++j) {
                     group.push_back(&jobs[b0 + j]);
-                    phi.push_back(zeroedBuffer(j, N * 3).data());
+                    phi.push_back(depositBuffer(j, N * 3).data());
                 }
                 std::vector<Tally> groupTallies(group.size());
                 sweepStepGroup(m_, group, r, phi, groupTallies);

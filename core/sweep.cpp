@@ -393,8 +393,10 @@ void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* ro
         }
 }
 
-// Adds one allocated tile's deposits times k to phi; sums sigma d (sca) and q (src).
-// clear: the deposits read are zeroed (planes shared by a group, each sweep scattering its own).
+// One allocated tile's deposits times k into phi (added, or assigned: phi's earlier values
+// there are overwritten); sums sigma d (sca) and q (src). clear: the deposits read are
+// zeroed (planes shared by a group, each sweep scattering its own).
+template <bool Assign>
 void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, int tu, int tv, float k, float* phi,
                  double sca[3], double src[3], bool clear) {
     constexpr int K = Medium::kTile;
@@ -410,7 +412,8 @@ void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, 
                 float* ph = &phi[(x0 + size_t(lu) * w.sU) * 3];
                 for (int c = 0; c < 3; ++c) {
                     const float d = q[(4 + c) * kLanes + lu];
-                    ph[c] += k * d;
+                    if constexpr (Assign) ph[c] = k * d;
+                    else ph[c] += k * d;
                     ts[c] += q[lu] * d;
                     tq[c] += q[(1 + c) * kLanes + lu];
                 }
@@ -482,10 +485,13 @@ public:
 
     // phi += k * the layer's deposits (allocated voxels only); sums sigma d and q. clear:
     // those deposits are zeroed for the next sweep of a group (sweepStepGroup).
+    // Every allocated tile of the layer into phi (each tile lies in one layer, so a sweep
+    // writes each of the block's stored voxels once); assign: overwriting what phi held.
+    template <bool Assign = false>
     void scatter(int layer, float k, float* phi, double sca[3], double src[3], bool clear = false) {
         for (int tv = 0; tv < f_.tnv; ++tv)
             for (int tu = 0; tu < f_.tnu; ++tu)
-                scatterTile(f_, rows_.data(), P_.data(), layer, tu, tv, k, phi, sca, src, clear);
+                scatterTile<Assign>(f_, rows_.data(), P_.data(), layer, tu, tv, k, phi, sca, src, clear);
     }
 
     const PlaneRow* rows() const { return rows_.data(); }
@@ -599,10 +605,10 @@ public:
         finish(tally);
     }
 
-    // After sweepLayer on a group's planes: phi += this sweep's deposits of the layer,
+    // After sweepLayer on a group's planes: phi = this sweep's deposits of the layer,
     // which are zeroed for the next sweep of the group.
     void scatterOwn(int layer, float* phi) {
-        planes_->scatter(layer, float(g_.aPerp) * depositScale_, phi, sca_, injSrc_, true);
+        planes_->scatter<true>(layer, float(g_.aPerp) * depositScale_, phi, sca_, injSrc_, true);
     }
 
     // The l-th tile layer this sweep crosses (its direction's order along the axis).

@@ -81,8 +81,11 @@ bool samePlanes(const Job& a, const Job& b);
 
 /// The sweeps of `jobs`, all with one sweep axis, one sign and one voxel-constant source,
 /// each with its own deposits: phi[j] and tallies[j] receive exactly what sweepStep of
-/// jobs[j] adds (bit for bit); each tile layer's planes are gathered once for all of them
-/// (a bin's directions in the separable passes, docs/performance.md "Sweep groups").
+/// jobs[j] adds to zeros (bit for bit); each tile layer's planes are gathered once for all
+/// of them (a bin's directions in the separable passes, docs/performance.md "Sweep
+/// groups"). phi[j] is assigned, not added to: every stored voxel of the block is
+/// overwritten, so a buffer need not be zeroed between uses; the stored voxels outside the
+/// block (edge tiles' padding) are left as they are.
 void sweepStepGroup(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<float*>& phi,
                     std::vector<Tally>& tallies);
 
