@@ -235,7 +235,7 @@ void PassRunner::runIsotropic(const std::vector<Job>& jobs, int r, Tally& total,
     std::vector<Tally> tallies(G);
     parallelForChunks(G, 1, [&](size_t gb, size_t ge) {
         for (size_t g = gb; g < ge; ++g)
-            sweepStepBatch(m_, batches[g], r, zeroedBuffer(g, N * 3).data(), tallies[g], perWeight);
+            sweepStepBatch(m_, batches[g], r, depositBuffer(g, N * 3).data(), tallies[g], perWeight);
     });
     for (const Tally& t : tallies) total.add(t);
     parallelForChunks(N * 3, 1 << 14, [&](size_t b, size_t e) {

@@ -57,7 +57,7 @@ private:
     /// were faulted in again each time (a fifth of a bake's time, docs/performance.md).
     std::vector<float>& zeroedBuffer(size_t i, size_t len) const;
     /// Deposit buffer i of `len` floats for a sweep that overwrites every stored voxel of the
-    /// block (sweepStepGroup): zeroed only when it is (re)allocated, so the padding of edge
+    /// block (sweepStepGroup, sweepStepBatch): zeroed only when it is (re)allocated, so the padding of edge
     /// tiles, which no sweep writes, stays 0 while the rest is left from the last batch
     /// (zeroing it for every batch took 5% of a g = 0.6 bake's time).
     std::vector<float>& depositBuffer(size_t i, size_t len) const;

@@ -1032,6 +1032,7 @@ void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r,
     // layer by layer, through one set of planes gathered once per layer for all of them.
     const double V = m.voxelVolume();
     const double alb[3] = {m.albedo.r, m.albedo.g, m.albedo.b};
+    bool assign = true;  // the first sign's deposits overwrite phi, the second's add to them
     for (int sign : {1, -1}) {
         if (std::none_of(jobs.begin(), jobs.end(), [&](const Job* j) { return j->sign == sign; })) continue;
         std::vector<std::unique_ptr<StepSweep>> sweeps;
@@ -1050,8 +1051,10 @@ void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r,
             const int layer = sweeps[0]->layerAt(l);
             const bool any = planes.gather(layer, first);
             for (auto& sw : sweeps) sw->sweepLayer(layer, any);
-            if (any) planes.scatter(layer, depositPerWeight, phi, sca, src);
+            if (any && assign) planes.scatter<true>(layer, depositPerWeight, phi, sca, src);
+            else if (any) planes.scatter(layer, depositPerWeight, phi, sca, src);
         }
+        assign = false;
         for (auto& sw : sweeps) sw->finish(tally);
         for (int c = 0; c < 3; ++c) {
             tally.injected[c] += src[c] * V * weights;

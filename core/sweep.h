@@ -69,9 +69,11 @@ void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally,
 /// srcStride, srcScale): the jobs of each sign advance together layer by layer, each tile
 /// layer's planes (medium, source) gathered once for all of them and their deposits
 /// accumulated there (docs/performance.md, "Batched sweeps"):
-/// phi [stored voxel][rgb] += depositPerWeight * sum_j weight_j Phi_j, that is
-/// sweepStep of each job with depositScale = depositPerWeight * weight_j, in job order
-/// (float rounding differs). The tally sums those of the jobs.
+/// phi [stored voxel][rgb] = depositPerWeight * sum_j weight_j Phi_j, that is sweepStep
+/// of each job with depositScale = depositPerWeight * weight_j into zeros, in job order
+/// (float rounding differs). phi is assigned, not added to, as in sweepStepGroup: every
+/// stored voxel of the block is overwritten, edge tiles' padding left as it is. The tally
+/// sums those of the jobs.
 void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
                     float depositPerWeight);
 
