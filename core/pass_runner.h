@@ -56,10 +56,10 @@ private:
     /// buffers are kept from pass to pass: allocated and freed every pass, their pages
     /// were faulted in again each time (a fifth of a bake's time, docs/performance.md).
     std::vector<float>& zeroedBuffer(size_t i, size_t len) const;
-    /// Deposit buffer i of `len` floats for a sweep that overwrites every stored voxel of the
-    /// block (sweepStepGroup, sweepStepBatch): zeroed only when it is (re)allocated, so the padding of edge
-    /// tiles, which no sweep writes, stays 0 while the rest is left from the last batch
-    /// (zeroing it for every batch took 5% of a g = 0.6 bake's time).
+    /// Deposit buffer i of `len` floats for a sweep that overwrites every stored voxel of
+    /// the block (sweepStepGroup, sweepStepBatch): zeroed only when it is (re)allocated, so
+    /// the padding of edge tiles, which no sweep writes, stays 0 while the rest is left
+    /// from the last batch (zeroing it for every batch: about 3% of a g = 0.6 bake's CPU).
     std::vector<float>& depositBuffer(size_t i, size_t len) const;
     /// Room for `len` floats in the first `count` buffers, allocated by the calling thread
     /// before the parallel sweeps zero them: a block allocated on a worker would come from

@@ -483,10 +483,10 @@ public:
         return any;
     }
 
-    // phi += k * the layer's deposits (allocated voxels only); sums sigma d and q. clear:
-    // those deposits are zeroed for the next sweep of a group (sweepStepGroup).
-    // Every allocated tile of the layer into phi (each tile lies in one layer, so a sweep
-    // writes each of the block's stored voxels once); assign: overwriting what phi held.
+    // phi += k * the layer's deposits (allocated voxels only), or phi = when Assign (each
+    // tile lies in one layer, so a sweep writes each of the block's stored voxels once);
+    // sums sigma d and q. clear: those deposits are zeroed for the next sweep of a group
+    // (sweepStepGroup).
     template <bool Assign = false>
     void scatter(int layer, float k, float* phi, double sca[3], double src[3], bool clear = false) {
         for (int tv = 0; tv < f_.tnv; ++tv)
