@@ -376,6 +376,10 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
     for (const auto& s : o.suns) lights.suns.push_back(toSun(s));
 
     const LpmSettings settings = solveSettings(o, context, log);
+    // Directional SH is held only where the bake writes it (core/sh_rows.h); counted as read.
+    const auto tWanted = Clock::now();
+    if (!vol.empty && planLpm(vol.medium, lights, settings).shOrder > 0) markWantedS(vol);
+    sum.secondsRead += since(tWanted);
     LpmResult res = solveStage(o, vol, lights, settings, sum, log);
     verifyStage(o, vol, lights, res, sum, log);
     const std::vector<float> scatter = separateSunTerms(o, settings.sunTerms, vol.empty, res, sum, log);

@@ -17,6 +17,7 @@
 #include "core/pass_runner.h"
 #include "core/quadrature.h"
 #include "core/separable_source.h"
+#include "core/sh_rows.h"
 #include "core/solve_plan.h"
 
 namespace lpm {
@@ -27,8 +28,10 @@ public:
     /// a two-grid solve, the restricted unshot [voxel][bin][rgb] that replaces pass 0 (taken
     /// over: with a voxel-constant source it becomes the first source without a copy); such
     /// a solve returns its source sum and no SH result (`sh` stays empty).
+    /// `shRows` (outlives the solve; null: one row per voxel): where the SH result holds
+    /// each voxel's row; run() returns it so, and the caller expands it (core/sh_rows.h).
     LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, const SolvePlan& plan,
-             std::shared_ptr<LpmCache> cache, std::vector<float>* initialSource);
+             std::shared_ptr<LpmCache> cache, std::vector<float>* initialSource, const ShRows* shRows = nullptr);
     LpmResult run();
 
 private:
@@ -75,6 +78,7 @@ private:
     double V_;
     int M_, nb_, nc_, r_;
     size_t perVoxel_;
+    const ShRows* shRows_;  ///< where res_.sh holds each voxel's row (core/sh_rows.h); null: row = voxel
     CubeQuadrature quad_;
     std::shared_ptr<const FormFactors> ff_;
     JobFactory jobs_;

@@ -94,13 +94,29 @@ LpmResult solveSubdivided(const Medium& m, const Lights& lights, const LpmSettin
     return res;
 }
 
+/// The solve on m's own voxels (delta-M scaled when planned), its SH result held only for
+/// the wanted voxels (core/sh_rows.h) and expanded to one row per stored voxel once the
+/// solve's buffers are gone: the solve's peak never holds both.
+LpmResult solveUnsubdivided(const Medium& m, const Lights& lights, const LpmSettings& s, const SolvePlan& plan) {
+    const ShRows rows(m, shCount(plan.shOrder));
+    LpmResult res = plan.deltaM
+                        ? LpmSolve(deltaMScaled(m, plan.deltaMFraction), lights, s, plan, s.cache, nullptr, &rows).run()
+                        : LpmSolve(m, lights, s, plan, s.cache, nullptr, &rows).run();
+    if (rows.compact()) {
+        releaseScratchPool();
+        returnFreedHeapPages();  // the pages kept for the passes' buffers: the full result takes new ones
+        rows.expand(res.sh, res.coeffs);
+    }
+    return res;
+}
+
 }  // namespace
 
 LpmSolve::LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, const SolvePlan& plan,
-                   std::shared_ptr<LpmCache> cache, std::vector<float>* initialSource)
+                   std::shared_ptr<LpmCache> cache, std::vector<float>* initialSource, const ShRows* shRows)
     : m_(m), lights_(lights), s_(s), plan_(plan), cache_(std::move(cache)), initialSource_(initialSource),
       N_(m.voxelCount()), V_(m.voxelVolume()), M_(plan.linearSource ? 4 : 1), nb_(0), nc_(shCount(plan.shOrder)),
-      r_(plan.raysSingle), perVoxel_(0), quad_(s.directionsPerFace),
+      r_(plan.raysSingle), perVoxel_(0), shRows_(shRows), quad_(s.directionsPerFace),
       ff_(cache_->formFactors(s.directionsPerFace, plan.binsPerFace, m.g)),
       jobs_(quad_, *ff_, m.localToWorld, m.voxelVolume(), shCount(plan.shOrder), plan.gOut) {
     nb_ = ff_->binCount();
@@ -113,7 +129,7 @@ LpmSolve::LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, 
     // A coarse continuation hands back only its source sum (its plan has SH order 0, "no
     // SH"): its band-0 result, 12 B per coarse voxel, is neither allocated nor folded.
     depositSh_ = initialSource_ == nullptr;
-    if (depositSh_) assignZeroed(res_.sh, N_ * nc_ * 3);
+    if (depositSh_) assignZeroed(res_.sh, (shRows_ ? shRows_->count() : N_) * nc_ * 3);
     // Linear source: voxels thicker than linearSourceVoxelCap keep a constant source. In
     // them the fitted slope approaches its bound 6 U0 (all light deposited at one face), the
     // linear profile goes strongly negative and the iteration loses accuracy (white furnace
@@ -138,7 +154,8 @@ LpmSolve::LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, 
     } else if (!initialSource_ || M_ != 1) {
         assignZeroed(next_, perVoxel_ * N_);  // else the initial source becomes next_ (startFromSource)
     }
-    runner_ = std::make_unique<PassRunner>(m, FoldShape{nb_, M_, nc_}, slopeVoxel_, res_.sh);
+    runner_ = std::make_unique<PassRunner>(m, FoldShape{nb_, M_, nc_}, slopeVoxel_, res_.sh,
+                                           shRows_ ? shRows_->map() : nullptr);
     if (initialSource_) assignZeroed(res_.sourceSum, N_ * size_t(nb_) * 3);
 }
 
@@ -354,8 +371,7 @@ LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& set
     const SolvePlan plan = planLpm(m, lights, s);
     LpmResult res;
     if (plan.subdivide > 1) res = solveSubdivided(m, lights, s, plan);
-    else if (!plan.deltaM) res = LpmSolve(m, lights, s, plan, s.cache, nullptr).run();
-    else res = LpmSolve(deltaMScaled(m, plan.deltaMFraction), lights, s, plan, s.cache, nullptr).run();
+    else res = solveUnsubdivided(m, lights, s, plan);
     releaseScratchPool();  // the sweeps' ray-row arenas: what runs next (the write) needs the memory
     return res;
 }

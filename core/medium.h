@@ -35,6 +35,11 @@ struct Medium {
     /// Empty: dense storage, index x + nx*(y + ny*z). Otherwise one entry per tile
     /// (tx + tnx*(ty + tny*tz)): its slot, or -1 when the tile is not allocated.
     std::vector<std::int32_t> tileSlot;
+    /// Empty: the caller reads S at every stored voxel. Otherwise one flag per stored voxel,
+    /// 1 where the caller reads S (a bake: the voxels it writes, docs/output_format.md
+    /// "Topology"); the solver may hold the SH result of the others nowhere and return 0
+    /// there (core/sh_rows.h). Cleared by allocate().
+    std::vector<std::uint8_t> wantedS;
 
     bool sparse() const { return !tileSlot.empty(); }
     int tilesX() const { return (nx + kTile - 1) / kTile; }
@@ -133,6 +138,7 @@ inline void Medium::allocate(int nx_, int ny_, int nz_, const std::vector<std::u
         }
     }
     assignZeroed(sigmaT, voxelCount());
+    wantedS.clear();
     emission.clear();
     if (withEmission) assignZeroed(emission, voxelCount());
 }
@@ -170,6 +176,9 @@ inline void Medium::validate() const {
                                   std::to_string(voxelCount()) + " voxels");
     if (!emission.empty() && emission.size() != voxelCount())
         throw Error("Medium", "emission has " + std::to_string(emission.size()) + " values for " +
+                                  std::to_string(voxelCount()) + " voxels");
+    if (!wantedS.empty() && wantedS.size() != voxelCount())
+        throw Error("Medium", "wantedS has " + std::to_string(wantedS.size()) + " flags for " +
                                   std::to_string(voxelCount()) + " voxels");
     validateMaterial(albedo, g);
     for (float s : sigmaT)

@@ -25,8 +25,11 @@ struct FoldShape {
 class PassRunner {
 public:
     /// `slopeVoxel`: with a linear source, which voxels keep their slopes (empty: all).
-    /// `sh` ([voxel][coeff][rgb]) receives the SH deposits of passes run with depositSh.
-    PassRunner(const Medium& m, FoldShape shape, const std::vector<std::uint8_t>& slopeVoxel, std::vector<float>& sh);
+    /// `sh` ([row][coeff][rgb]) receives the SH deposits of passes run with depositSh;
+    /// voxel v's row is shRow[v] (core/sh_rows.h: none where it is ShRows::kNone), or v
+    /// when shRow is null. The isotropic fold (one coefficient) takes no row map.
+    PassRunner(const Medium& m, FoldShape shape, const std::vector<std::uint8_t>& slopeVoxel, std::vector<float>& sh,
+               const std::uint32_t* shRow = nullptr);
 
     /// Sweeps `jobs` with r rays per voxel; adds their tallies to `total`, their unshot
     /// deposits to `out` ([voxel][bin][moment][rgb]) and, with depositSh, their SH to sh.
@@ -73,6 +76,7 @@ private:
     FoldShape shape_;
     const std::vector<std::uint8_t>& slopeVoxel_;
     std::vector<float>& sh_;
+    const std::uint32_t* shRow_;
     mutable std::vector<std::vector<float>> buffers_;
 };
 

@@ -22,7 +22,7 @@ void LpmSolve::runSeparablePass(const SeparableSource* src, Tally& t, const std:
     std::vector<size_t> starts;
     for (size_t j = 0; j < jobs.size(); ++j)
         if (starts.empty() || j - starts.back() >= kBatch || (src && jobBin[j] != jobBin[j - 1])) starts.push_back(j);
-    SeparableFold fold(sep_->map, m_.sigmaT, sep_->binWeight, nc_);
+    SeparableFold fold(sep_->map, m_.sigmaT, sep_->binWeight, nc_, shRows_ ? shRows_->map() : nullptr);
     const auto fill = [&](size_t b) { src->fillBin(sep_->map, jobBin[starts[b]], sep_->binSource.data()); };
     runner_->sweepInBatches(jobs, starts, r_, t, src ? std::function<void(size_t)>(fill) : nullptr,
                             [&](const Job* js, size_t n, const std::vector<std::vector<float>>& phi) {

@@ -7,6 +7,7 @@
 #include "core/fold_kernel.h"
 #include "core/malloc_policy.h"
 #include "core/parallel.h"
+#include "core/sh_rows.h"
 #include "core/simd_clones.h"
 #include "core/sweep.h"
 
@@ -138,9 +139,9 @@ double SeparableSource::power(const FineCoarseMap& map, const std::vector<double
 }
 
 SeparableFold::SeparableFold(const FineCoarseMap& map, const std::vector<float>& sigmaT,
-                             const std::vector<double>& binWeight, int shCoeffs)
+                             const std::vector<double>& binWeight, int shCoeffs, const std::uint32_t* shRow)
     : map_(map), sigmaT_(sigmaT), binWeight_(binWeight.begin(), binWeight.end()), nb_(int(binWeight.size())),
-      nc_(shCoeffs) {
+      nc_(shCoeffs), shRow_(shRow) {
     out_.bins = nb_;
     assignZeroed(out_.magnitude, map.parent.size() * 3);
     assignZeroed(shapeSum_, map.sigmaSum.size() * size_t(nb_) * 3);
@@ -155,6 +156,8 @@ struct BatchCoefs {
     std::vector<float> bin3;  ///< [job][bin][rgb]
     std::vector<float> sh3;   ///< [job][coeff][rgb]
     std::vector<float> mag;   ///< [job]: sum_d w_d binCoef_d, the job's share of a voxel's angular integral
+    const std::uint32_t* shRow = nullptr;  ///< fine voxel -> SH row (core/sh_rows.h); null: the identity
+    size_t row(size_t f) const { return shRow ? shRow[f] : f; }
 };
 
 /// Fine voxels [vb, ve) of a batch's fold, in storage order: each deposit goes to the
@@ -171,10 +174,12 @@ void foldFineRange(size_t vb, size_t ve, const BatchCoefs& k, const FineCoarseMa
         const float sigma = sigmaT[f];
         float* m = &mag[f * 3];
         float* q = &psi[size_t(parent) * k.n * 3];
+        const size_t row = k.row(f);
+        const bool toSh = depositSh && row != ShRows::kNone;
         for (size_t j = 0; j < k.n; ++j) {
             const float* p = &phi[j][f * 3];
             if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
-            if (depositSh) addTimesRgb(&sh[f * size_t(k.nc) * 3], &k.sh3[j * size_t(k.nc) * 3], RgbRepeat(p), k.nc);
+            if (toSh) addTimesRgb(&sh[row * size_t(k.nc) * 3], &k.sh3[j * size_t(k.nc) * 3], RgbRepeat(p), k.nc);
             for (int c = 0; c < 3; ++c) {
                 m[c] += k.mag[j] * p[c];
                 q[j * 3 + size_t(c)] += sigma * p[c];
@@ -189,6 +194,30 @@ void foldFineRange(size_t vb, size_t ve, const BatchCoefs& k, const FineCoarseMa
 /// more than its memory traffic (docs/performance.md, session 17).
 #if defined(__GNUC__)
 typedef float Float8 __attribute__((vector_size(32), aligned(4), may_alias));
+/// row (27 floats) += the SH terms of 4 jobs' deposits d[job][rgb], job 0's term first.
+__attribute__((always_inline)) inline void addBatchToRow4x9(float* row, const float* cf, const float* d) {
+    Float8 s0 = *reinterpret_cast<const Float8*>(row), s1 = *reinterpret_cast<const Float8*>(row + 8),
+           s2 = *reinterpret_cast<const Float8*>(row + 16);
+    float t0 = row[24], t1 = row[25], t2 = row[26];
+    for (int j = 0; j < 4; ++j) {
+        const float a = d[j * 3], b = d[j * 3 + 1], c = d[j * 3 + 2];
+        const Float8 pa = {a, b, c, a, b, c, a, b}, pb = {c, a, b, c, a, b, c, a}, pc = {b, c, a, b, c, a, b, c};
+        const float* q = cf + j * 27;
+        s0 += *reinterpret_cast<const Float8*>(q) * pa;
+        s1 += *reinterpret_cast<const Float8*>(q + 8) * pb;
+        s2 += *reinterpret_cast<const Float8*>(q + 16) * pc;
+        t0 += q[24] * a;
+        t1 += q[25] * b;
+        t2 += q[26] * c;
+    }
+    *reinterpret_cast<Float8*>(row) = s0;
+    *reinterpret_cast<Float8*>(row + 8) = s1;
+    *reinterpret_cast<Float8*>(row + 16) = s2;
+    row[24] = t0;
+    row[25] = t1;
+    row[26] = t2;
+}
+
 LPM_SIMD_CLONES
 void foldFineRange4x9(size_t vb, size_t ve, const BatchCoefs& k, const FineCoarseMap& map, const float* sigmaT,
                       const std::vector<std::vector<float>>& phi, float* sh, float* mag, float* psi) {
@@ -200,27 +229,8 @@ void foldFineRange4x9(size_t vb, size_t ve, const BatchCoefs& k, const FineCoars
         float d[12];
         for (int j = 0; j < 4; ++j)
             for (int c = 0; c < 3; ++c) d[j * 3 + c] = ph[j][f * 3 + size_t(c)];
-        float* row = &sh[f * 27];
-        Float8 s0 = *reinterpret_cast<const Float8*>(row), s1 = *reinterpret_cast<const Float8*>(row + 8),
-               s2 = *reinterpret_cast<const Float8*>(row + 16);
-        float t0 = row[24], t1 = row[25], t2 = row[26];
-        for (int j = 0; j < 4; ++j) {
-            const float a = d[j * 3], b = d[j * 3 + 1], c = d[j * 3 + 2];
-            const Float8 pa = {a, b, c, a, b, c, a, b}, pb = {c, a, b, c, a, b, c, a}, pc = {b, c, a, b, c, a, b, c};
-            const float* q = cf + j * 27;
-            s0 += *reinterpret_cast<const Float8*>(q) * pa;
-            s1 += *reinterpret_cast<const Float8*>(q + 8) * pb;
-            s2 += *reinterpret_cast<const Float8*>(q + 16) * pc;
-            t0 += q[24] * a;
-            t1 += q[25] * b;
-            t2 += q[26] * c;
-        }
-        *reinterpret_cast<Float8*>(row) = s0;
-        *reinterpret_cast<Float8*>(row + 8) = s1;
-        *reinterpret_cast<Float8*>(row + 16) = s2;
-        row[24] = t0;
-        row[25] = t1;
-        row[26] = t2;
+        const size_t row = k.row(f);
+        if (row != ShRows::kNone) addBatchToRow4x9(&sh[row * 27], cf, d);
         float* m = &mag[f * 3];
         for (int j = 0; j < 4; ++j)
             for (int c = 0; c < 3; ++c) m[c] += k.mag[size_t(j)] * d[j * 3 + c];
@@ -256,6 +266,7 @@ void SeparableFold::fold(bool depositSh, const Job* jobs, size_t n, const std::v
     k.bin3.resize(n * size_t(nb_) * 3);
     k.sh3.resize(n * size_t(nc_) * 3);
     k.mag.assign(n, 0.0f);
+    k.shRow = shRow_;
     for (size_t j = 0; j < n; ++j) {
         for (int c = 0; c < 3; ++c) {
             for (int d = 0; d < nb_; ++d)

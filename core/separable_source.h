@@ -79,7 +79,7 @@ struct SeparableSource {
 class SeparableFold {
 public:
     SeparableFold(const FineCoarseMap& map, const std::vector<float>& sigmaT, const std::vector<double>& binWeight,
-                  int shCoeffs);
+                  int shCoeffs, const std::uint32_t* shRow = nullptr);
     /// Deposits phi[j] [fine voxel][rgb] of jobs[0..n), in job order.
     void fold(bool depositSh, const Job* jobs, size_t n, const std::vector<std::vector<float>>& phi,
               std::vector<float>& sh);
@@ -91,6 +91,7 @@ private:
     const std::vector<float>& sigmaT_;
     std::vector<float> binWeight_;
     int nb_, nc_;
+    const std::uint32_t* shRow_;  ///< fine voxel -> SH row (core/sh_rows.h); null: the identity
     SeparableSource out_;
     std::vector<float> shapeSum_;  ///< sum_f sigma_f U_f(d) [coarse voxel][bin][rgb] until finish()
     std::vector<float> psi_;       ///< [coarse voxel][job][rgb]: a batch's sum_f sigma_f phi_j(f), 0 between batches

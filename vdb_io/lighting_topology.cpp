@@ -71,6 +71,28 @@ LightingTopology lightingTopology(const openvdb::FloatGrid& density, const Dense
     return t;
 }
 
+std::vector<std::uint8_t> lightingVoxelFlags(const openvdb::FloatGrid& density, const openvdb::Coord& blockMin,
+                                             const Medium& m) {
+    openvdb::MaskGrid lit(false);
+    lit.tree().topologyUnion(density.tree());
+    lit.tree().voxelizeActiveTiles();
+    openvdb::tools::dilateActiveValues(lit.tree(), kLightingShell, openvdb::tools::NN_FACE_EDGE_VERTEX,
+                                       openvdb::tools::EXPAND_TILES);
+    lit.tree().voxelizeActiveTiles();
+    std::vector<std::uint8_t> flags(m.voxelCount(), 0);
+    // Leaves in parallel: each voxel's flag is written by the one leaf holding it.
+    openvdb::tree::LeafManager<const openvdb::MaskTree> leaves(lit.tree());
+    leaves.foreach ([&](const openvdb::MaskTree::LeafNodeType& leaf, size_t) {
+        for (auto it = leaf.cbeginValueOn(); it; ++it) {
+            const openvdb::Coord d = it.getCoord() - blockMin;
+            if (d.x() < 0 || d.y() < 0 || d.z() < 0 || d.x() >= m.nx || d.y() >= m.ny || d.z() >= m.nz) continue;
+            const size_t v = m.index(d.x(), d.y(), d.z());
+            if (v != Medium::npos) flags[v] = 1;
+        }
+    });
+    return flags;
+}
+
 std::uint64_t missingShellVoxels(const openvdb::FloatGrid& density, const openvdb::Vec3SGrid& lighting) {
     openvdb::MaskGrid need(false);
     need.tree().topologyUnion(density.tree());

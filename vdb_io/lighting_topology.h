@@ -14,8 +14,11 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include <openvdb/openvdb.h>
+
+#include "core/medium.h"
 
 namespace lpm {
 
@@ -42,6 +45,13 @@ LightingTopology lightingTopology(const openvdb::FloatGrid& density, const Dense
 /// the span of the block's voxel centres (interpolated, not clamped) and every voxel of its
 /// trilinear stencil is stored.
 bool hasSolvedValue(const DenseBake& bake, const openvdb::Coord& c);
+
+/// Medium::wantedS for a bake solved at scale 1: a flag per stored voxel of `m` (block
+/// voxel (0,0,0) at input index `blockMin`), set on the voxels lightingTopology() makes
+/// active there: the density's active voxels and their kLightingShell dilation, where
+/// stored (hasSolvedValue at scale 1).
+std::vector<std::uint8_t> lightingVoxelFlags(const openvdb::FloatGrid& density, const openvdb::Coord& blockMin,
+                                             const Medium& m);
 
 /// Voxels of the density's kLightingShell dilation (density's own included) that are not
 /// active in `lighting`: 0 for a bake written by this lpmbake; bakes written before the

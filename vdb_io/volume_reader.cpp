@@ -528,6 +528,11 @@ VolumeInput readVolume(const VolumeReadOptions& o) {
     return out;
 }
 
+void markWantedS(VolumeInput& v) {
+    if (v.empty || v.solveGrid.scale != 1.0 || v.solveGrid.affine || !v.density) return;
+    v.medium.wantedS = lightingVoxelFlags(*v.density, v.blockMin, v.medium);
+}
+
 void gridToMedium(const openvdb::FloatGrid& gridIn, const VolumeReadOptions& o, VolumeInput& out) {
     // Work on a grid we may modify (sanitising); the caller's shared pointer is replaced
     // only through out.density in readVolume, so copy when called directly.

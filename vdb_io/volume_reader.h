@@ -97,6 +97,12 @@ VolumeInput readVolume(const VolumeReadOptions& options);
 /// Converts an already loaded density grid (used by readVolume and by tests).
 void gridToMedium(const openvdb::FloatGrid& grid, const VolumeReadOptions& options, VolumeInput& out);
 
+/// Tells the solver where the bake writes S (Medium::wantedS, lightingVoxelFlags): at
+/// scale 1 the density's active voxels and their one-voxel shell; elsewhere (a resampled
+/// or sheared block, whose output interpolates) every stored voxel. Worth its 5-10 ms
+/// (1M voxels) only when the solve keeps directional SH (core/sh_rows.h).
+void markWantedS(VolumeInput& v);
+
 /// "file.vdb": name (type, class, N active voxels), ... of every grid (for `info` and errors).
 std::string describeGrid(const openvdb::GridBase& grid);
 

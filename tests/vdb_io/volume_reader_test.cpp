@@ -9,7 +9,9 @@
 #include <openvdb/tools/LevelSetSphere.h>
 
 #include "test_helpers.h"
+#include "vdb_io/bake_file.h"
 #include "vdb_io/io_error.h"
+#include "vdb_io/lighting_topology.h"
 
 using namespace lpm;
 using lpmtest::dataPath;
@@ -326,4 +328,46 @@ TEST(VolumeReader, OptionsNameTheFieldOutOfRange) {
     bad.path = "/no/such/file.vdb";
     bad.solveScale = 0;
     EXPECT_THROW(readVolume(bad), SettingError);
+}
+
+// At scale 1 the solver can be told where the bake writes S (Medium::wantedS): exactly the
+// stored voxels lightingTopology() makes active, on voxels, an active 8^3 tile and a
+// voxel at the block's edge, and on a real file.
+TEST(VolumeReader, WantedVoxelsAreTheLightingTopology) {
+    initOpenVdb();
+    auto synthetic = openvdb::FloatGrid::create(0.f);
+    synthetic->setName("density");
+    for (int x : {0, 6, 23}) synthetic->tree().setValue(openvdb::Coord(x, 3, -2), 1.f);
+    synthetic->tree().setValue(openvdb::Coord(9, 9, 9), 0.f);  // active, empty: still written
+    synthetic->tree().addTile(1, openvdb::Coord(16, 8, 0), 0.5f, true);  // an active 8^3 tile
+    std::vector<VolumeInput> inputs(2);
+    gridToMedium(*synthetic, opts(""), inputs[0]);
+    inputs[1] = readVolume(opts(dataPath("vdb/densityAndHeat.vdb")));
+    for (VolumeInput& v : inputs) {
+        EXPECT_TRUE(v.medium.wantedS.empty()) << "marked only when asked";
+        markWantedS(v);
+        const Medium& m = v.medium;
+        ASSERT_EQ(m.wantedS.size(), m.voxelCount());
+        DenseBake b;
+        b.blockMin = v.blockMin;
+        b.nx = m.nx;
+        b.ny = m.ny;
+        b.nz = m.nz;
+        const std::vector<float> sh(m.voxelCount() * 3, 0.f);
+        b.sh = sh.data();
+        b.layout = &m;
+        const LightingTopology lt = lightingTopology(*v.density, b);
+        size_t wanted = 0, disagree = 0;
+        for (size_t i = 0; i < m.voxelCount(); ++i) {
+            int x, y, z;
+            m.coord(i, x, y, z);
+            const bool inBlock = x >= 0 && y >= 0 && z >= 0 && x < m.nx && y < m.ny && z < m.nz;
+            const bool lit = inBlock && lt.grid->tree().isValueOn(v.blockMin + openvdb::Coord(x, y, z));
+            disagree += lit != (m.wantedS[i] != 0);
+            wanted += m.wantedS[i];
+        }
+        EXPECT_EQ(disagree, 0u);
+        EXPECT_EQ(wanted, lt.grid->activeVoxelCount());
+        EXPECT_LT(wanted, m.voxelCount());
+    }
 }
