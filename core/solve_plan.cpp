@@ -42,6 +42,7 @@ void planSubdivision(SceneSummary& scene, const LpmSettings& s, SolvePlan& plan)
     const int k = s.subdivide;
     for (int& d : scene.dims) d *= k;
     scene.storedVoxels *= size_t(k) * k * k;
+    scene.wantedVoxels = scene.storedVoxels;  // the split medium holds S everywhere (it is averaged back)
     scene.maxVoxelTau /= k;
     plan.decisions.push_back(
         {"solved on voxels split " + dims(k) + " and averaged back",
@@ -83,10 +84,16 @@ void planAngular(const SceneSummary& scene, const LpmSettings& s, SolvePlan& pla
         plan.decisions.push_back(
             {"SH order 0", "the phase function is isotropic (g = 0), so S has no directional part"});
     }
-    const double shBytes = double(scene.storedVoxels) * shCount(plan.shOrder) * 3 * sizeof(float);
-    if (plan.shOrder > 0)
-        plan.decisions.push_back({"SH order " + std::to_string(plan.shOrder),
-                                  format("g = %.4g: S depends on the viewing direction", plan.gOut), -1, shBytes});
+    // At order >= 1 the SH rows are held only for the wanted voxels (core/sh_rows.h).
+    const size_t rows = scene.wantedVoxels > 0 ? scene.wantedVoxels : scene.storedVoxels;
+    const double shBytes = double(rows) * shCount(plan.shOrder) * 3 * sizeof(float);
+    if (plan.shOrder > 0) {
+        std::string why = format("g = %.4g: S depends on the viewing direction", plan.gOut);
+        if (rows < scene.storedVoxels)
+            why += "; held for the " + std::to_string(rows) + " voxels written of " +
+                   std::to_string(scene.storedVoxels) + " stored";
+        plan.decisions.push_back({"SH order " + std::to_string(plan.shOrder), why, -1, shBytes});
+    }
     plan.binsPerFace = s.binsPerFace;
     if (s.binsPerFace >= 0) return;
     // Bins must nest the direction texels (b divides n), or a direction straddling a bin
@@ -265,6 +272,8 @@ SceneSummary summarizeScene(const Medium& m, const Lights& lights, const EnvBinn
     sc.dims[1] = m.ny;
     sc.dims[2] = m.nz;
     sc.storedVoxels = m.voxelCount();
+    sc.wantedVoxels = m.wantedS.empty() ? sc.storedVoxels : 0;
+    for (std::uint8_t w : m.wantedS) sc.wantedVoxels += w != 0;
     const double hmax = std::max(m.voxelSize.x, std::max(m.voxelSize.y, m.voxelSize.z));
     for (float sg : m.sigmaT) sc.maxVoxelTau = std::max(sc.maxVoxelTau, double(sg) * hmax);
     sc.g = m.g;

@@ -23,6 +23,7 @@ struct EnvBinning;
 struct SceneSummary {
     int dims[3] = {0, 0, 0};    ///< block dimensions in voxels
     size_t storedVoxels = 0;    ///< voxels the solve allocates (allocated tiles only)
+    size_t wantedVoxels = 0;    ///< voxels whose S the caller reads (Medium::wantedS; all stored when unset)
     double maxVoxelTau = 0;     ///< largest sigma_t times the longest voxel edge
     double g = 0;               ///< Henyey-Greenstein asymmetry of the medium
     RGB albedo;                 ///< single-scattering albedo

@@ -64,6 +64,29 @@ TEST(SolvePlan, IsotropicPhaseGivesShOrderZeroAndOneBin) {
     EXPECT_TRUE(says(q, "2x2 unshot bins per cube face"));
 }
 
+// Directional SH is held only for the voxels the caller reads (core/sh_rows.h): the plan
+// says so and predicts that memory; the scene summary counts Medium::wantedS.
+TEST(SolvePlan, ShRowsOnlyForTheWrittenVoxels) {
+    SceneSummary fwd = smallScene();
+    fwd.g = 0.6;
+    fwd.wantedVoxels = 1000;
+    const SolvePlan p = planSolve(fwd, LpmSettings{}, 2);
+    EXPECT_TRUE(says(p, "held for the 1000 voxels written of 32768 stored"));
+    const auto sh = std::find_if(p.decisions.begin(), p.decisions.end(),
+                                 [](const PlanDecision& d) { return d.what == "SH order 2"; });
+    ASSERT_NE(sh, p.decisions.end());
+    EXPECT_EQ(sh->predictedBytes, 1000.0 * 9 * 3 * sizeof(float));
+    fwd.wantedVoxels = fwd.storedVoxels;
+    EXPECT_FALSE(says(planSolve(fwd, LpmSettings{}, 2), "voxels written"));
+
+    Medium m = makeBox(16, 16, 16, 0.5);
+    m.g = 0.6;
+    EXPECT_EQ(summarizeScene(m, Lights{}, nullptr, false).wantedVoxels, m.voxelCount());
+    m.wantedS.assign(m.voxelCount(), 0);
+    for (size_t v = 0; v < m.voxelCount(); v += 3) m.wantedS[v] = 1;
+    EXPECT_EQ(summarizeScene(m, Lights{}, nullptr, false).wantedVoxels, (m.voxelCount() + 2) / 3);
+}
+
 TEST(SolvePlan, LightPassesFollowTheLights) {
     SceneSummary sc = smallScene();
     SolvePlan p = planSolve(sc, LpmSettings{}, 2);

@@ -338,7 +338,7 @@ TEST(VolumeReader, WantedVoxelsAreTheLightingTopology) {
     auto synthetic = openvdb::FloatGrid::create(0.f);
     synthetic->setName("density");
     for (int x : {0, 6, 23}) synthetic->tree().setValue(openvdb::Coord(x, 3, -2), 1.f);
-    synthetic->tree().setValue(openvdb::Coord(9, 9, 9), 0.f);  // active, empty: still written
+    synthetic->tree().setValue(openvdb::Coord(9, 9, 9), 0.f);            // active, empty: still written
     synthetic->tree().addTile(1, openvdb::Coord(16, 8, 0), 0.5f, true);  // an active 8^3 tile
     std::vector<VolumeInput> inputs(2);
     gridToMedium(*synthetic, opts(""), inputs[0]);
