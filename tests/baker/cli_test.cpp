@@ -557,6 +557,29 @@ TEST(Cli, MultiresIsReportedAndRecorded) {
         1, "usage", {"--multires", "maybe"});
 }
 
+// At SH order >= 1 the solver holds SH rows only for the voxels the bake writes
+// (core/sh_rows.h): the plan names their count, which is the written grids' (at scale 1;
+// a resampled solve keeps every row, its output interpolates).
+TEST(Cli, DirectionalShIsHeldForTheWrittenVoxels) {
+    const std::string dir = lpmtest::scratchDir();
+    const std::vector<std::string> lit = {"--sun", "0.3,0.8,0.5", "--g", "0.5", "--density-scale", "0.1"};
+    auto a = torusArgs(dir + "/g5.vdb");
+    a.insert(a.end(), lit.begin(), lit.end());
+    const auto r = runLpmbake(a, dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    const BakeFile b = readBakeFile(dir + "/g5.vdb");
+    const std::string held = "held for the " + std::to_string(b.scatter->activeVoxelCount()) + " voxels written of ";
+    EXPECT_NE(metaString(*b.meta, "lpm:decisions").find(held), std::string::npos)
+        << metaString(*b.meta, "lpm:decisions");
+    auto h = torusArgs(dir + "/half.vdb");
+    h.insert(h.end(), lit.begin(), lit.end());
+    h.insert(h.end(), {"--solve-scale", "0.5"});
+    const auto resampled = runLpmbake(h, dir);
+    ASSERT_EQ(resampled.code, 0) << resampled.err;
+    EXPECT_EQ(metaString(*readBakeFile(dir + "/half.vdb").meta, "lpm:decisions").find("voxels written of"),
+              std::string::npos);
+}
+
 // The exact sun term (docs/sun_term.md): on for g != 0, off for g = 0 (SH order 0 holds
 // isotropic single scattering exactly) or --sun-term off; recorded, validated, and the
 // SH then hold S without the sun's single scattering while `scatter` keeps it.
