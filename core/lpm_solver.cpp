@@ -320,13 +320,15 @@ bool LpmSolve::iterate() {
 // A linear source can dip below zero in a voxel's corners (no slope limiter: one would
 // break the scheme's linearity, and with it GMRES and the exact white furnace). Voxel
 // averages stay non-negative in every measured case; any that does not is clamped to
-// zero and reported.
+// zero and reported. The result's rows are the held ones (core/sh_rows.h: the wanted
+// voxels' when compact), so only values the caller reads are counted.
 void LpmSolve::clampNegativeLinear() {
     size_t clamped = 0;
-    for (size_t x = 0; depositSh_ && x < N_; ++x)
-        for (int c = 0; c < 3; ++c)
-            if (res_.sh[x * nc_ * 3 + c] < 0) {
-                res_.sh[x * nc_ * 3 + c] = 0;
+    const size_t width = size_t(nc_) * 3, rows = res_.sh.size() / width;
+    for (size_t row = 0; depositSh_ && row < rows; ++row)
+        for (size_t c = 0; c < 3; ++c)
+            if (res_.sh[row * width + c] < 0) {
+                res_.sh[row * width + c] = 0;
                 ++clamped;
             }
     if (clamped)

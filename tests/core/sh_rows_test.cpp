@@ -67,20 +67,24 @@ TEST(ShRows, ExpandPutsEachRowAtItsVoxelAndZerosElsewhere) {
 
 // A solve that keeps SH rows only for the wanted voxels returns, there, exactly the full
 // solve's values (and 0 elsewhere), on each fold that deposits SH: the separable fine
-// passes of the two-grid solve (its 4x9 kernel and the general one) and the full fold.
+// passes of the two-grid solve (its 4x9 kernel and the general one), the full fold, and
+// the linear source's (whose negative band-0 values are clamped on the held rows).
 TEST(ShRows, SolveWithWantedVoxelsEqualsTheFullSolveThere) {
     Case cs{"plume g0.5 a0.95", VolumeKind::Plume, 0.5, 0.95, 8.0};
     Scene sc = makeScene(cs, 24);
     sc.lights.env = &sc.sky;
-    LpmSettings separable, fullSources;
+    LpmSettings separable, fullSources, linear;
     separable.multires = fullSources.multires = 1;
     fullSources.separableSource = 0;
-    for (const LpmSettings& s : {separable, fullSources}) {
+    linear.multires = 0;
+    linear.linearSource = 1;
+    linear.directionsPerFace = 2;  // 24 directions: the linear source costs 4-5x the step scheme
+    for (const LpmSettings& s : {separable, fullSources, linear}) {
         Medium all = sc.medium, some = sc.medium;
         some.wantedS = someVoxels(some.voxelCount(), 11);
         const LpmResult ra = solveLpm(all, sc.lights, s), rs = solveLpm(some, sc.lights, s);
         ASSERT_EQ(ra.coeffs, 9);
-        ASSERT_EQ(saidDecision(rs, "separable fine sources"), s.separableSource != 0);
+        ASSERT_EQ(saidDecision(rs, "separable fine sources"), s.multires == 1 && s.separableSource != 0);
         ASSERT_EQ(ra.sh.size(), rs.sh.size());
         size_t mismatched = 0, nonZeroUnwanted = 0;
         for (size_t v = 0; v < all.voxelCount(); ++v)
@@ -89,7 +93,9 @@ TEST(ShRows, SolveWithWantedVoxelsEqualsTheFullSolveThere) {
                 if (some.wantedS[v]) mismatched += got != ra.sh[v * 27 + i];
                 else nonZeroUnwanted += got != 0.0f;
             }
-        EXPECT_EQ(mismatched, 0u) << (s.separableSource == 0 ? "full sources" : "separable sources");
+        EXPECT_EQ(mismatched, 0u) << (s.linearSource == 1    ? "linear source"
+                                      : s.separableSource == 0 ? "full sources"
+                                                               : "separable sources");
         EXPECT_EQ(nonZeroUnwanted, 0u);
         EXPECT_EQ(ra.absorbed, rs.absorbed);
         EXPECT_EQ(ra.passes.size(), rs.passes.size());
