@@ -99,7 +99,7 @@ void gridToMedium(const openvdb::FloatGrid& grid, const VolumeReadOptions& optio
 
 /// Tells the solver where the bake writes S (Medium::wantedS, lightingVoxelFlags): at
 /// scale 1 the density's active voxels and their one-voxel shell; elsewhere (a resampled
-/// or sheared block, whose output interpolates) every stored voxel. Worth its 5-10 ms
+/// or sheared block, whose output interpolates) every stored voxel. Worth its 12-20 ms
 /// (1M voxels) only when the solve keeps directional SH (core/sh_rows.h).
 void markWantedS(VolumeInput& v);
 
