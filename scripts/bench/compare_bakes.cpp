@@ -22,7 +22,9 @@ struct GridDiff {
 };
 
 double magnitude(float v) { return std::fabs(double(v)); }
-double magnitude(const openvdb::Vec3s& v) { return std::fabs(double(v[0])) + std::fabs(double(v[1])) + std::fabs(double(v[2])); }
+double magnitude(const openvdb::Vec3s& v) {
+    return std::fabs(double(v[0])) + std::fabs(double(v[1])) + std::fabs(double(v[2]));
+}
 
 /// Values of `a` against `b` (same grid type), then b's active voxels that a lacks.
 template <class GridT>
@@ -85,9 +87,8 @@ int main(int argc, char** argv) {
                 differ = true;
                 continue;
             }
-            std::printf("%s: %zu values, %zu differ, largest difference %.3g, relative L1 %.3g\n",
-                        a->getName().c_str(), d.values, d.differ, d.maxAbs,
-                        d.sumAbs > 0 ? d.sumAbsDiff / d.sumAbs : 0.0);
+            std::printf("%s: %zu values, %zu differ, largest difference %.3g, relative L1 %.3g\n", a->getName().c_str(),
+                        d.values, d.differ, d.maxAbs, d.sumAbs > 0 ? d.sumAbsDiff / d.sumAbs : 0.0);
             differ = differ || d.differ > 0;
         }
         for (const openvdb::GridBase::Ptr& b : *gb)

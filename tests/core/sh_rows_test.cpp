@@ -93,7 +93,7 @@ TEST(ShRows, SolveWithWantedVoxelsEqualsTheFullSolveThere) {
                 if (some.wantedS[v]) mismatched += got != ra.sh[v * 27 + i];
                 else nonZeroUnwanted += got != 0.0f;
             }
-        EXPECT_EQ(mismatched, 0u) << (s.linearSource == 1    ? "linear source"
+        EXPECT_EQ(mismatched, 0u) << (s.linearSource == 1      ? "linear source"
                                       : s.separableSource == 0 ? "full sources"
                                                                : "separable sources");
         EXPECT_EQ(nonZeroUnwanted, 0u);
