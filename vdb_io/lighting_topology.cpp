@@ -13,6 +13,18 @@
 
 namespace lpm {
 
+namespace {
+
+/// Adds the kLightingShell dilation (26-neighbourhood: faces, edges, corners) to `tree`'s
+/// active voxels: the one rule the topology, the solver's flags and the check share.
+template <class TreeT>
+void dilateByLightingShell(TreeT& tree) {
+    openvdb::tools::dilateActiveValues(tree, kLightingShell, openvdb::tools::NN_FACE_EDGE_VERTEX,
+                                       openvdb::tools::EXPAND_TILES);
+}
+
+}  // namespace
+
 bool hasSolvedValue(const DenseBake& b, const openvdb::Coord& c) {
     if (!b.sh) return false;
     const int n[3] = {b.nx, b.ny, b.nz};
@@ -48,8 +60,7 @@ LightingTopology lightingTopology(const openvdb::FloatGrid& density, const Dense
     t.grid->tree().voxelizeActiveTiles();
     if (!b.sh) return t;
     const openvdb::Index64 before = t.grid->activeVoxelCount();
-    openvdb::tools::dilateActiveValues(t.grid->tree(), kLightingShell, openvdb::tools::NN_FACE_EDGE_VERTEX,
-                                       openvdb::tools::EXPAND_TILES);
+    dilateByLightingShell(t.grid->tree());
     // Keep a shell voxel only where the solver computed S (never extrapolate); the
     // density's own voxels stay whatever happens.
     std::atomic<std::uint64_t> dropped{0};
@@ -76,8 +87,7 @@ std::vector<std::uint8_t> lightingVoxelFlags(const openvdb::FloatGrid& density, 
     openvdb::MaskGrid lit(false);
     lit.tree().topologyUnion(density.tree());
     lit.tree().voxelizeActiveTiles();
-    openvdb::tools::dilateActiveValues(lit.tree(), kLightingShell, openvdb::tools::NN_FACE_EDGE_VERTEX,
-                                       openvdb::tools::EXPAND_TILES);
+    dilateByLightingShell(lit.tree());
     lit.tree().voxelizeActiveTiles();
     std::vector<std::uint8_t> flags(m.voxelCount(), 0);
     // Leaves in parallel: each voxel's flag is written by the one leaf holding it.
@@ -96,8 +106,7 @@ std::vector<std::uint8_t> lightingVoxelFlags(const openvdb::FloatGrid& density, 
 std::uint64_t missingShellVoxels(const openvdb::FloatGrid& density, const openvdb::Vec3SGrid& lighting) {
     openvdb::MaskGrid need(false);
     need.tree().topologyUnion(density.tree());
-    openvdb::tools::dilateActiveValues(need.tree(), kLightingShell, openvdb::tools::NN_FACE_EDGE_VERTEX,
-                                       openvdb::tools::EXPAND_TILES);
+    dilateByLightingShell(need.tree());
     need.tree().topologyDifference(lighting.tree());
     return need.activeVoxelCount();
 }
