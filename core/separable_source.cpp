@@ -13,46 +13,77 @@
 
 namespace lpm {
 
-FineCoarseMap::FineCoarseMap(const Medium& f, const Medium& c) {
-    assignZeroed(parent, f.voxelCount());
-    std::fill(parent.begin(), parent.end(), kNone);
-    children.assign(c.voxelCount() * 8, kNone);
-    assignZeroed(sigmaSum, c.voxelCount());
-    groupSize = f.sparse() ? Medium::kTileVoxels : 2 * size_t(f.nx) * size_t(f.ny);
+namespace {
+
+/// fn(ci, kids) for every stored coarse voxel ci of c, kids[k] its child k's index in f
+/// (Medium::npos where absent), in parallel over coarse z-slices.
+template <class Fn>
+void forEachCoarseVoxel(const Medium& f, const Medium& c, const Fn& fn) {
     parallelForChunks(size_t(c.nz), 1, [&](size_t zb, size_t ze) {
         for (int z = int(zb); z < int(ze); ++z)
             for (int y = 0; y < c.ny; ++y)
                 for (int x = 0; x < c.nx; ++x) {
                     const size_t ci = c.index(x, y, z);
                     if (ci == Medium::npos) continue;
-                    double sigma = 0;
+                    size_t kids[8];
                     for (int k = 0; k < 8; ++k) {
                         const int fx = 2 * x + (k & 1), fy = 2 * y + ((k >> 1) & 1), fz = 2 * z + (k >> 2);
-                        if (fx >= f.nx || fy >= f.ny || fz >= f.nz) continue;
-                        const size_t fi = f.index(fx, fy, fz);
-                        if (fi == Medium::npos) continue;
-                        children[ci * 8 + size_t(k)] = std::uint32_t(fi);
-                        parent[fi] = std::uint32_t(ci);
-                        sigma += f.sigmaT[fi];
+                        const bool inside = fx < f.nx && fy < f.ny && fz < f.nz;
+                        kids[k] = inside ? f.index(fx, fy, fz) : Medium::npos;
                     }
-                    sigmaSum[ci] = float(sigma);
+                    fn(ci, kids);
                 }
+    });
+}
+
+}  // namespace
+
+FineCoarseMap::FineCoarseMap(const Medium& f, const Medium& c) : coarseVoxels(c.voxelCount()) {
+    std::vector<float> mass;  // [coarse voxel] the children's sigma_t summed in child order
+    assignZeroed(mass, coarseVoxels);
+    forEachCoarseVoxel(f, c, [&](size_t ci, const size_t* kids) {
+        double sigma = 0;
+        for (int k = 0; k < 8; ++k)
+            if (kids[k] != Medium::npos) sigma += f.sigmaT[kids[k]];
+        mass[ci] = float(sigma);
+    });
+    std::vector<std::uint32_t> rowOf(coarseVoxels, kNone);
+    for (size_t ci = 0; ci < coarseVoxels; ++ci)
+        if (mass[ci] > 0) {
+            rowOf[ci] = std::uint32_t(rowVoxel.size());
+            rowVoxel.push_back(std::uint32_t(ci));
+        }
+    sigmaSum.resize(rowVoxel.size());
+    for (size_t row = 0; row < rowVoxel.size(); ++row) sigmaSum[row] = mass[rowVoxel[row]];
+    assignZeroed(parent, f.voxelCount());
+    std::fill(parent.begin(), parent.end(), kNone);
+    children.assign(rowVoxel.size() * 8, kNone);
+    groupSize = f.sparse() ? Medium::kTileVoxels : 2 * size_t(f.nx) * size_t(f.ny);
+    forEachCoarseVoxel(f, c, [&](size_t ci, const size_t* kids) {
+        const std::uint32_t row = rowOf[ci];
+        if (row == kNone) return;
+        for (int k = 0; k < 8; ++k)
+            if (kids[k] != Medium::npos) {
+                children[size_t(row) * 8 + size_t(k)] = std::uint32_t(kids[k]);
+                parent[kids[k]] = row;
+            }
     });
 }
 
 // Coarse buffers are tens of MiB: each is written into storage advised onto huge pages
 // (assignZeroed), where a plain copy or assign would fault it in 4 KiB at a time (about
 // 0.5 s of a plume-1M g = 0.6 bake went to those faults, docs/performance.md session 18).
-std::vector<float> SeparableSource::restricted() const {
+std::vector<float> SeparableSource::restricted(const FineCoarseMap& map) const {
     std::vector<float> out;
-    assignZeroed(out, shape.size());
     const size_t nb = size_t(bins);
-    parallelForChunks(coarseVoxels, 1 << 11, [&](size_t pb, size_t pe) {
+    assignZeroed(out, map.coarseVoxels * nb * 3);
+    parallelForChunks(coarseRows, 1 << 11, [&](size_t pb, size_t pe) {
         for (size_t p = pb; p < pe; ++p)
             for (size_t d = 0; d < nb; ++d)
                 for (size_t c = 0; c < 3; ++c) {
                     const size_t h = heldIndex(p, d, c);
-                    out[(p * nb + d) * 3 + c] = offset.empty() ? shape.at(h) : shape.at(h) + offsetAt(h);
+                    out[(size_t(map.rowVoxel[p]) * nb + d) * 3 + c] =
+                        offset.empty() ? shape.at(h) : shape.at(h) + offsetAt(h);
                 }
     });
     return out;
@@ -64,19 +95,45 @@ float SeparableSource::offsetAt(size_t h) const {
     return p;
 }
 
-HalfBuffer SeparableSource::holdByBin(const std::vector<float>& x, int bins) {
+namespace {
+
+/// x's rows in half precision, bin-major: row p is x's row voxel(p) ([voxel][bin][rgb]).
+template <class Voxel>
+HalfBuffer holdRows(const std::vector<float>& x, int bins, size_t rows, const Voxel& voxel) {
+    const size_t nb = size_t(bins);
+    // The largest magnitude among the held rows (in parallel runs, their maximum: exact).
+    constexpr size_t kRun = 1 << 11;
+    std::vector<float> largest((rows + kRun - 1) / kRun, 0.0f);
+    parallelForChunks(rows, kRun, [&](size_t pb, size_t pe) {
+        float m = 0;
+        for (size_t p = pb; p < pe; ++p)
+            for (size_t i = 0; i < nb * 3; ++i) {
+                const float a = std::fabs(x[voxel(p) * nb * 3 + i]);
+                if (std::isfinite(a)) m = std::max(m, a);
+            }
+        largest[pb / kRun] = m;
+    });
     HalfBuffer out;
-    out.scale = HalfBuffer::scaleFor(largestFinite(x));
+    out.scale = HalfBuffer::scaleFor(largest.empty() ? 0.0f : *std::max_element(largest.begin(), largest.end()));
     const float inverse = 1.0f / out.scale;  // a power of two: exact
-    assignZeroed(out.bits, x.size());
-    const size_t nb = size_t(bins), voxels = x.size() / (3 * nb);
-    parallelForChunks(voxels, 1 << 11, [&](size_t pb, size_t pe) {
+    assignZeroed(out.bits, rows * nb * 3);
+    parallelForChunks(rows, kRun, [&](size_t pb, size_t pe) {
         for (size_t p = pb; p < pe; ++p)
             for (size_t d = 0; d < nb; ++d)
                 for (size_t c = 0; c < 3; ++c)
-                    out.bits[(d * voxels + p) * 3 + c] = halfFromFloat(x[(p * nb + d) * 3 + c] * inverse);
+                    out.bits[(d * rows + p) * 3 + c] = halfFromFloat(x[(voxel(p) * nb + d) * 3 + c] * inverse);
     });
     return out;
+}
+
+}  // namespace
+
+HalfBuffer SeparableSource::holdByBin(const std::vector<float>& x, int bins) {
+    return holdRows(x, bins, x.size() / (3 * size_t(bins)), [](size_t p) { return p; });
+}
+
+HalfBuffer SeparableSource::holdRowsByBin(const std::vector<float>& x, int bins, const FineCoarseMap& map) {
+    return holdRows(x, bins, map.rows(), [&](size_t p) { return size_t(map.rowVoxel[p]); });
 }
 
 namespace {
@@ -170,16 +227,17 @@ void foldFineRange(size_t vb, size_t ve, const BatchCoefs& k, const FineCoarseMa
                    const std::vector<std::vector<float>>& phi, bool depositSh, float* sh, float* mag, float* psi) {
     for (size_t f = vb; f < ve; ++f) {
         const std::uint32_t parent = map.parent[f];
-        if (parent == FineCoarseMap::kNone) continue;
-        const float sigma = sigmaT[f];
-        float* m = &mag[f * 3];
-        float* q = &psi[size_t(parent) * k.n * 3];
         const size_t row = k.row(f);
         const bool toSh = depositSh && row != ShRows::kNone;
+        if (parent == FineCoarseMap::kNone && !toSh) continue;
+        const float sigma = sigmaT[f];
+        float* m = &mag[f * 3];
+        float* q = parent == FineCoarseMap::kNone ? nullptr : &psi[size_t(parent) * k.n * 3];
         for (size_t j = 0; j < k.n; ++j) {
             const float* p = &phi[j][f * 3];
             if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
             if (toSh) addTimesRgb(&sh[row * size_t(k.nc) * 3], &k.sh3[j * size_t(k.nc) * 3], RgbRepeat(p), k.nc);
+            if (!q) continue;  // no mass under the parent: no source of power
             for (int c = 0; c < 3; ++c) {
                 m[c] += k.mag[j] * p[c];
                 q[j * 3 + size_t(c)] += sigma * p[c];
@@ -225,12 +283,13 @@ void foldFineRange4x9(size_t vb, size_t ve, const BatchCoefs& k, const FineCoars
     const float* const cf = k.sh3.data();  // [job][27]
     for (size_t f = vb; f < ve; ++f) {
         const std::uint32_t parent = map.parent[f];
-        if (parent == FineCoarseMap::kNone) continue;
+        const size_t row = k.row(f);
+        if (parent == FineCoarseMap::kNone && row == ShRows::kNone) continue;
         float d[12];
         for (int j = 0; j < 4; ++j)
             for (int c = 0; c < 3; ++c) d[j * 3 + c] = ph[j][f * 3 + size_t(c)];
-        const size_t row = k.row(f);
         if (row != ShRows::kNone) addBatchToRow4x9(&sh[row * 27], cf, d);
+        if (parent == FineCoarseMap::kNone) continue;  // no mass under the parent: no source of power
         float* m = &mag[f * 3];
         for (int j = 0; j < 4; ++j)
             for (int c = 0; c < 3; ++c) m[c] += k.mag[size_t(j)] * d[j * 3 + c];
@@ -306,7 +365,7 @@ SeparableSource SeparableFold::finish() {
             for (size_t i = 0; i < nb * 3; ++i) r[i] = s > 0 ? r[i] / s : 0.0f;
         }
     });
-    out_.coarseVoxels = map_.sigmaSum.size();
+    out_.coarseRows = map_.rows();
     out_.shape = SeparableSource::holdByBin(shapeSum_, nb_);
     shapeSum_ = std::vector<float>();
     assignZeroed(out_.norm, map_.sigmaSum.size() * 3);

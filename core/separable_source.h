@@ -29,40 +29,53 @@ namespace lpm {
 struct Job;
 
 /// Fine voxels and their coarse parents (the coarse medium of core/multires.h: voxels
-/// twice as large, fine voxel (x, y, z) the child of coarse voxel (x/2, y/2, z/2)).
+/// twice as large, fine voxel (x, y, z) the child of coarse voxel (x/2, y/2, z/2)). Only
+/// the coarse voxels that hold mass (a child with sigma_t > 0) get a row, numbered in the
+/// coarse medium's storage order: a source elsewhere has no power (the sweeps' source is
+/// sigma_s U), and on a sparse medium about half of the coarse grid's stored voxels are
+/// empty (the plume-1M: 131,743 of 254,464; its tiles' fringes). Every coarse-sized buffer
+/// of a separable source is indexed by row (docs/multires.md, "Coarse rows").
 struct FineCoarseMap {
     static constexpr std::uint32_t kNone = ~std::uint32_t(0);
-    std::vector<std::uint32_t> parent;    ///< [fine voxel] its coarse voxel, kNone outside the block
-    std::vector<std::uint32_t> children;  ///< [coarse voxel][8] its fine voxels, kNone where absent
-    std::vector<float> sigmaSum;          ///< [coarse voxel] sum of its children's sigma_t
+    /// [fine voxel] its parent's row; kNone outside the block and under a parent without
+    /// mass (such a voxel's sigma_t is 0)
+    std::vector<std::uint32_t> parent;
+    std::vector<std::uint32_t> children;  ///< [row][8] its fine voxels, kNone where absent
+    std::vector<float> sigmaSum;          ///< [row] sum of its children's sigma_t (> 0)
+    std::vector<std::uint32_t> rowVoxel;  ///< [row] its coarse voxel
+    size_t coarseVoxels = 0;              ///< the coarse medium's stored voxels
     /// Fine voxels [k groupSize, (k + 1) groupSize) have parents no other group has: a fine
     /// tile when the fine medium is sparse, else two z-slices.
     size_t groupSize = 1;
     FineCoarseMap(const Medium& fine, const Medium& coarse);
+    size_t rows() const { return sigmaSum.size(); }
 };
 
-/// A fine-grid source held separably (see the file comment). The half-precision buffers
-/// are held bin-major, [bin][coarse voxel][rgb], so filling one bin (fillBin, 24 times a
-/// pass) reads 6 contiguous bytes per coarse voxel instead of one per 144-byte row.
+/// A fine-grid source held separably (see the file comment), its coarse buffers by the
+/// map's rows (FineCoarseMap). The half-precision buffers are held bin-major,
+/// [bin][row][rgb], so filling one bin (fillBin, 24 times a pass) reads 6 contiguous bytes
+/// per coarse row instead of one per 144-byte row.
 struct SeparableSource {
     int bins = 0;
-    size_t coarseVoxels = 0;
-    std::vector<float> magnitude;  ///< m_f [fine voxel][rgb]
-    HalfBuffer shape;              ///< R_C [bin][coarse voxel][rgb], in half precision
-    std::vector<float> norm;       ///< |R_C| [coarse voxel][rgb] (signed)
-    std::vector<float> invAbs;     ///< 1 / sum_d w_d |R_C(d)| [coarse voxel][rgb], 0 where R_C = 0
+    size_t coarseRows = 0;         ///< FineCoarseMap::rows()
+    std::vector<float> magnitude;  ///< m_f [fine voxel][rgb] (0 under a parent without mass)
+    HalfBuffer shape;              ///< R_C [bin][row][rgb], in half precision
+    std::vector<float> norm;       ///< |R_C| [row][rgb] (signed)
+    std::vector<float> invAbs;     ///< 1 / sum_d w_d |R_C(d)| [row][rgb], 0 where R_C = 0
     float invWeight = 0;           ///< 1 / sum_d w_d: the isotropic shape
-    /// P_C [bin][coarse voxel][rgb], the sum of these parts (none: 0). Their sum is formed
+    /// P_C [bin][row][rgb], the sum of these parts (none: 0). Their sum is formed
     /// where it is read (fillBin, power, restricted), never as a coarse buffer of floats.
     std::vector<HalfBuffer> offset;
 
-    /// x [coarse voxel][bin][rgb] in half precision, held bin-major (as shape and offset).
+    /// x [row][bin][rgb] in half precision, held bin-major (as shape and offset).
     static HalfBuffer holdByBin(const std::vector<float>& x, int bins);
-    /// Where (coarse voxel, bin, channel) lies in shape and offset.
-    size_t heldIndex(size_t voxel, size_t bin, size_t c) const { return (bin * coarseVoxels + voxel) * 3 + c; }
+    /// x [coarse voxel][bin][rgb] (a coarse solve's result) at map's rows, held as above.
+    static HalfBuffer holdRowsByBin(const std::vector<float>& x, int bins, const FineCoarseMap& map);
+    /// Where (row, bin, channel) lies in shape and offset.
+    size_t heldIndex(size_t row, size_t bin, size_t c) const { return (bin * coarseRows + row) * 3 + c; }
     /// The source restricted to the coarse grid, R_C + P_C [coarse voxel][bin][rgb] (what
-    /// restrictSource gives for the full source).
-    std::vector<float> restricted() const;
+    /// restrictSource gives for the full source; 0 at coarse voxels without mass).
+    std::vector<float> restricted(const FineCoarseMap& map) const;
     /// P_C at held index h (heldIndex).
     float offsetAt(size_t h) const;
     /// out [fine voxel][rgb] = U_f(bin), 0 for voxels outside the block.
@@ -93,8 +106,8 @@ private:
     int nb_, nc_;
     const std::uint32_t* shRow_;  ///< fine voxel -> SH row (core/sh_rows.h); null: the identity
     SeparableSource out_;
-    std::vector<float> shapeSum_;  ///< sum_f sigma_f U_f(d) [coarse voxel][bin][rgb] until finish()
-    std::vector<float> psi_;       ///< [coarse voxel][job][rgb]: a batch's sum_f sigma_f phi_j(f), 0 between batches
+    std::vector<float> shapeSum_;  ///< sum_f sigma_f U_f(d) [row][bin][rgb] until finish()
+    std::vector<float> psi_;       ///< [row][job][rgb]: a batch's sum_f sigma_f phi_j(f), 0 between batches
 };
 
 }  // namespace lpm

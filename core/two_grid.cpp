@@ -151,8 +151,8 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         returnFreedHeapPages();
         // E = r + tail. The tail is held in half precision (core/half_buffer.h): the same
         // rounded tail is added to E and taken from r', so the rounding moves no energy.
-        r.offset.push_back(SeparableSource::holdByBin(
-            coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count), r.bins));
+        r.offset.push_back(SeparableSource::holdRowsByBin(
+            coarseOrders(mc, cs, coarsePlan, r.restricted(sep_->map), rPower, cycles, p, count), r.bins, sep_->map));
         const auto tf = Clock::now();
         Tally t;
         runSeparablePass(&r, t);

@@ -40,6 +40,26 @@ bool insideBlock(const Medium& m, size_t v) {
     return x >= 0 && x < m.nx && y < m.ny && z < m.nz;
 }
 
+/// sparseBlock with no extinction for x < 10: its coarse voxels with x < 5 hold no mass
+/// (no row in the map), while elsewhere single fine voxels without extinction remain.
+Medium blockWithEmptySlab(std::uint64_t seed) {
+    Medium m = sparseBlock(seed);
+    for (size_t v = 0; v < m.voxelCount(); ++v) {
+        int x, y, z;
+        m.coord(v, x, y, z);
+        if (x < 10) m.sigmaT[v] = 0.0f;
+    }
+    return m;
+}
+
+/// x [row][width] of map's rows at their coarse voxels ([coarse voxel][width], 0 elsewhere).
+std::vector<float> atCoarseVoxels(const FineCoarseMap& map, const std::vector<float>& x, size_t width) {
+    std::vector<float> out(map.coarseVoxels * width, 0.0f);
+    for (size_t row = 0; row < map.rows(); ++row)
+        for (size_t i = 0; i < width; ++i) out[size_t(map.rowVoxel[row]) * width + i] = x[row * width + i];
+    return out;
+}
+
 // Random jobs (bin and SH coefficients) and their random deposits: a pass's fold input.
 struct FoldInput {
     int bins = 5, coeffs = 4;
@@ -96,14 +116,16 @@ void expectFoldsMatch(const Medium& f, const FineCoarseMap& map, const FoldInput
         std::vector<float> sh;
         const SeparableSource s = foldSeparably(f, map, in, sh, batch);
         for (size_t i = 0; i < sh.size(); ++i) ASSERT_NEAR(sh[i], shFull[i], 1e-5f * (1 + std::fabs(shFull[i]))) << i;
+        // Under a parent without mass (no row) the integral is not formed: 0.
         for (size_t v = 0; v < f.voxelCount(); ++v)
             for (int ch = 0; ch < 3; ++ch) {
                 double m = 0;
                 for (int d = 0; d < in.bins; ++d) m += in.binWeight[d] * U[(v * in.bins + d) * 3 + ch];
+                if (map.parent[v] == FineCoarseMap::kNone) m = 0;
                 ASSERT_NEAR(s.magnitude[v * 3 + ch], m, 1e-5 * (1 + m)) << v;
             }
         // R_C is held in half precision: within 2^-11 of each value (core/half_buffer.h).
-        const std::vector<float> r = s.restricted();
+        const std::vector<float> r = s.restricted(map);
         ASSERT_EQ(r.size(), restrictedFull.size());
         for (size_t i = 0; i < r.size(); ++i)
             ASSERT_NEAR(r[i], restrictedFull[i],
@@ -114,35 +136,61 @@ void expectFoldsMatch(const Medium& f, const FineCoarseMap& map, const FoldInput
 
 }  // namespace
 
-TEST(SeparableSource, MapPairsEveryFineVoxelOfTheBlockWithItsParent) {
-    const Medium f = sparseBlock(3);
+// Every fine voxel of the block is paired with its parent's row, and only the coarse
+// voxels that hold mass have rows, in storage order.
+TEST(SeparableSource, MapPairsEveryFineVoxelOfTheBlockWithItsParentsRow) {
+    const Medium f = blockWithEmptySlab(3);
     const Medium c = coarsen(f);
     const FineCoarseMap map(f, c);
-    size_t mapped = 0;
+    ASSERT_EQ(map.coarseVoxels, c.voxelCount());
+    ASSERT_EQ(map.rowVoxel.size(), map.rows());
+    std::vector<std::uint32_t> rowOf(c.voxelCount(), FineCoarseMap::kNone);
+    for (size_t row = 0; row < map.rows(); ++row) {
+        if (row > 0) {
+            ASSERT_LT(map.rowVoxel[row - 1], map.rowVoxel[row]);
+        }
+        rowOf[map.rowVoxel[row]] = std::uint32_t(row);
+        EXPECT_NEAR(map.sigmaSum[row], 8 * c.sigmaT[map.rowVoxel[row]], 1e-4) << row;
+    }
+    size_t withMass = 0;
+    for (size_t ci = 0; ci < c.voxelCount(); ++ci) {
+        withMass += c.sigmaT[ci] > 0;
+        EXPECT_EQ(rowOf[ci] != FineCoarseMap::kNone, c.sigmaT[ci] > 0) << ci;
+    }
+    EXPECT_EQ(map.rows(), withMass);
+    EXPECT_LT(map.rows(), c.voxelCount() * 9 / 10);  // the empty slab has no rows
+    size_t mapped = 0, zeroUnderMass = 0;
     for (size_t v = 0; v < f.voxelCount(); ++v) {
         const std::uint32_t p = map.parent[v];
-        ASSERT_EQ(p != FineCoarseMap::kNone, insideBlock(f, v)) << v;
-        if (p == FineCoarseMap::kNone) continue;
-        ++mapped;
         int x, y, z;
         f.coord(v, x, y, z);
-        EXPECT_EQ(size_t(p), c.index(x / 2, y / 2, z / 2));
+        const size_t ci = insideBlock(f, v) ? c.index(x / 2, y / 2, z / 2) : Medium::npos;
+        ASSERT_EQ(p, ci == Medium::npos ? FineCoarseMap::kNone : rowOf[ci]) << v;
+        if (p == FineCoarseMap::kNone) {
+            if (insideBlock(f, v)) {
+                EXPECT_EQ(f.sigmaT[v], 0.0f) << v;
+            }
+            continue;
+        }
+        ++mapped;
+        zeroUnderMass += f.sigmaT[v] == 0;
         EXPECT_EQ(map.children[size_t(p) * 8 + size_t((x & 1) + 2 * (y & 1) + 4 * (z & 1))], v);
     }
+    EXPECT_GT(zeroUnderMass, size_t(0));
     size_t children = 0;
     for (std::uint32_t ch : map.children) children += ch != FineCoarseMap::kNone;
     EXPECT_EQ(children, mapped);
-    for (size_t ci = 0; ci < c.voxelCount(); ++ci) EXPECT_NEAR(map.sigmaSum[ci], 8 * c.sigmaT[ci], 1e-4) << ci;
 }
 
-// The separable fold computes the full fold's SH exactly (same order of sums) and, of its
-// next source, each voxel's angular integral and the sigma-weighted restriction
-// (restrictSource of the full source), for any batch size; with 9 SH coefficients (order 2)
-// batches of 4 take the unrolled kernel (foldFineRange4x9), the others the general one.
+// The separable fold computes the full fold's SH exactly (same order of sums), also where
+// no mass is near (the written shell of a density), and, of its next source, each voxel's
+// angular integral and the sigma-weighted restriction (restrictSource of the full source),
+// for any batch size; with 9 SH coefficients (order 2) batches of 4 take the unrolled
+// kernel (foldFineRange4x9), the others the general one.
 TEST(SeparableSource, FoldKeepsTheFullFoldsIntegralsAndRestriction) {
     for (int coeffs : {4, 9}) {
         SCOPED_TRACE(coeffs);
-        const Medium f = sparseBlock(4);
+        const Medium f = blockWithEmptySlab(4);
         const Medium c = coarsen(f);
         const FineCoarseMap map(f, c);
         const FoldInput in(f, 7, 5, coeffs);
@@ -159,13 +207,13 @@ TEST(SeparableSource, FoldKeepsTheFullFoldsIntegralsAndRestriction) {
 // with the normalisation); the power, with a coarse offset of two half-precision parts, is
 // that of the full source with their sum injected, to within the same rounding.
 TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
-    const Medium f = sparseBlock(6);
+    const Medium f = blockWithEmptySlab(6);
     const Medium c = coarsen(f);
     const FineCoarseMap map(f, c);
     const int bins = 4;
     const std::vector<double> w = {0.7, 1.1, 0.9, 1.3};
     Pcg32 rng(8, 2);
-    std::vector<float> shapeC(c.voxelCount() * bins * 3), U(f.voxelCount() * bins * 3, 0.0f);
+    std::vector<float> shapeC(map.rows() * bins * 3), U(f.voxelCount() * bins * 3, 0.0f);
     for (float& x : shapeC) x = float(rng.uniform());
     for (size_t v = 0; v < f.voxelCount(); ++v) {
         if (map.parent[v] == FineCoarseMap::kNone) continue;
@@ -191,13 +239,14 @@ TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
     }
     std::vector<float> sh;
     SeparableSource s = foldSeparably(f, map, in, sh, 2);
-    std::vector<float> tail(c.voxelCount() * bins * 3), previous(tail.size());
+    std::vector<float> tail(map.rows() * bins * 3), previous(tail.size());
     for (float& x : tail) x = float(rng.uniform()) - 0.3f;
     for (float& x : previous) x = 10.0f * (float(rng.uniform()) - 0.7f);
     s.offset.push_back(SeparableSource::holdByBin(previous, bins));
-    s.offset.push_back(SeparableSource::holdByBin(tail, bins));
+    // The tail as a coarse solve returns it, [coarse voxel][bin][rgb], held at the rows.
+    s.offset.push_back(SeparableSource::holdRowsByBin(atCoarseVoxels(map, tail, size_t(bins) * 3), bins, map));
     std::vector<float> offsetSum(tail.size());
-    for (size_t p = 0; p < c.voxelCount(); ++p)
+    for (size_t p = 0; p < map.rows(); ++p)
         for (int d = 0; d < bins; ++d)
             for (int ch = 0; ch < 3; ++ch) {
                 const size_t i = (p * bins + size_t(d)) * 3 + size_t(ch), h = s.heldIndex(p, size_t(d), size_t(ch));
@@ -206,7 +255,7 @@ TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
                 ASSERT_NEAR(offsetSum[i], previous[i] + tail[i], 11.0 / 2048) << i;  // half: 2^-11 relative
             }
     std::vector<float> withTail = U;
-    addCoarse(f, c, offsetSum, bins, 1, 1.0f, withTail);
+    addCoarse(f, c, atCoarseVoxels(map, offsetSum, size_t(bins) * 3), bins, 1, 1.0f, withTail);
     std::vector<float> out(f.voxelCount() * 3);
     std::vector<double> integral(f.voxelCount() * 3, 0.0);
     for (int d = 0; d < bins; ++d) {
@@ -229,7 +278,7 @@ TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
         ++checked;
         for (int ch = 0; ch < 3; ++ch) ASSERT_NEAR(integral[v * 3 + ch], s.magnitude[v * 3 + ch], 1e-5) << v;
     }
-    EXPECT_GT(checked, f.voxelCount() / 3);
+    EXPECT_GT(checked, f.voxelCount() / 4);  // a third of the block is the empty slab
     const RGB albedo(0.9f, 0.8f, 0.7f);
     double want = 0;
     for (size_t v = 0; v < f.voxelCount(); ++v)
@@ -259,19 +308,23 @@ TEST(SeparableSource, PowerOfALargeSourceIsTheSumForAnyThreadCount) {
     for (float& x : tail) x = float(rng.uniform()) - 0.4f;
     SeparableSource s;
     s.bins = bins;
-    s.coarseVoxels = map.sigmaSum.size();
+    s.coarseRows = map.rows();
     s.shape = SeparableSource::holdByBin(shape, bins);
     s.offset.push_back(SeparableSource::holdByBin(tail, bins));
     const RGB albedo(0.9f, 0.8f, 0.7f);
-    const std::vector<float> r = s.restricted();
+    const std::vector<float> r = s.restricted(map);
+    ASSERT_EQ(r.size(), map.coarseVoxels * bins * 3);
     // Held bin-major, restricted in the solver's order [coarse voxel][bin][rgb]: each value
-    // the rounded shape plus the rounded tail of the same voxel, bin and channel.
-    for (size_t i = 0; i < r.size(); ++i) ASSERT_NEAR(r[i], shape[i] + tail[i], std::ldexp(1.0f, -10)) << i;
+    // the rounded shape plus the rounded tail of the same row, bin and channel.
+    const std::vector<float> want3 = atCoarseVoxels(map, shape, size_t(bins) * 3),
+                             tail3 = atCoarseVoxels(map, tail, size_t(bins) * 3);
+    for (size_t i = 0; i < r.size(); ++i) ASSERT_NEAR(r[i], want3[i] + tail3[i], std::ldexp(1.0f, -10)) << i;
     double want = 0;
-    for (size_t ci = 0; ci < map.sigmaSum.size(); ++ci)
+    for (size_t row = 0; row < map.rows(); ++row)
         for (int d = 0; d < bins; ++d)
             for (int ch = 0; ch < 3; ++ch)
-                want += double(r[(ci * bins + d) * 3 + ch]) * map.sigmaSum[ci] * albedo[ch] * w[size_t(d)];
+                want += double(r[(size_t(map.rowVoxel[row]) * bins + d) * 3 + ch]) * map.sigmaSum[row] * albedo[ch] *
+                        w[size_t(d)];
     want *= f.voxelVolume() / 3.0;
     double one = 0, two = 0;
     {
