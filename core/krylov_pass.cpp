@@ -29,7 +29,7 @@ HalfOperator LpmSolve::basisOperator() {
         const auto tp = Clock::now();
         std::fill(outv.begin(), outv.end(), 0.0f);
         Tally t;
-        propagateHalfSource(*runner_, jobs_, v, nb_, m_.albedo, r_, halfSlots_, t, outv);
+        propagateHalfSource(*runner_, jobs_, v, nb_, m_.albedo, r_, halfSlots_, t, outv, rows_);
         recordPass(pass_++, t, tp, false);
         parallelForChunks(outv.size(), 1 << 16, [&](size_t b0, size_t e0) {
             for (size_t i = b0; i < e0; ++i) outv[i] = v.at(i) - outv[i];
@@ -48,7 +48,7 @@ void LpmSolve::startFromSourceSum(std::vector<float>& B, HalfBuffer& halfB, std:
     X = std::move(res_.sourceSum);
     const auto tp = Clock::now();
     assignZeroed(firstResidual, len);
-    runner_->run(sourceJobs(X), r_, sumTally, false, firstResidual);  // K S
+    propagate(X, sumTally, false, firstResidual);  // K S
     recordPass(pass_++, sumTally, tp, false);
     parallelForChunks(len, 1 << 16, [&](size_t b0, size_t e0) {
         for (size_t i = b0; i < e0; ++i) {
@@ -69,10 +69,11 @@ template <class Rhs>
 double LpmSolve::unaccounted(const Rhs& B, const std::vector<float>& KX, const std::vector<float>& X) const {
     double miss = 0;
     for (int d = 0; d < nb_; ++d)
-        for (size_t x = 0; x < N_; ++x)
+        for (size_t x = 0; x < S_; ++x)
             for (int c = 0; c < 3; ++c) {
                 const size_t i = (x * nb_ + d) * M_ * 3 + c;
-                miss += std::fabs(double(B(i)) + KX[i] - X[i]) * m_.sigmaT[x] * m_.albedo[c] * ff_->binWeight(d) * V_;
+                miss += std::fabs(double(B(i)) + KX[i] - X[i]) * m_.sigmaT[voxelOf(x)] * m_.albedo[c] *
+                        ff_->binWeight(d) * V_;
             }
     return miss / 3.0;
 }
@@ -109,7 +110,7 @@ void LpmSolve::finishWithGmres() {
         const auto tp = Clock::now();
         std::fill(outv.begin(), outv.end(), 0.0f);
         Tally t;
-        runner_->run(sourceJobs(v), r_, t, false, outv);
+        propagate(v, t, false, outv);
         recordPass(pass_++, t, tp, false);
         parallelForChunks(len, 1 << 16, [&](size_t b0, size_t e0) {
             for (size_t i = b0; i < e0; ++i) outv[i] = v[i] - outv[i];
@@ -144,7 +145,7 @@ void LpmSolve::finishWithGmres() {
     }
     addToSourceSum(X);
     Tally t;
-    runner_->run(sourceJobs(X), r_, t, depositSh_, next_);
+    propagate(X, t, depositSh_, next_);
     for (int c = 0; c < 3; ++c) {  // X_0's part was counted in the passes before GMRES
         t.injected[c] -= sumTally.injected[c];
         t.absorbed[c] -= sumTally.absorbed[c];

@@ -14,6 +14,7 @@
 #include "core/job_factory.h"
 #include "core/lpm_cache.h"
 #include "core/lpm_solver.h"
+#include "core/mass_rows.h"
 #include "core/pass_runner.h"
 #include "core/quadrature.h"
 #include "core/separable_source.h"
@@ -30,8 +31,12 @@ public:
     /// a solve returns its source sum and no SH result (`sh` stays empty).
     /// `shRows` (outlives the solve; null: one row per voxel): where the SH result holds
     /// each voxel's row; run() returns it so, and the caller expands it (core/sh_rows.h).
+    /// `sourceRows` (a coarse continuation's, outlives the solve; m's voxels with mass,
+    /// core/mass_rows.h): the initial source and the source sum are held by these rows,
+    /// [row][bin][rgb], and so is every source the solve propagates.
     LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, const SolvePlan& plan,
-             std::shared_ptr<LpmCache> cache, std::vector<float>* initialSource, const ShRows* shRows = nullptr);
+             std::shared_ptr<LpmCache> cache, std::vector<float>* initialSource, const ShRows* shRows = nullptr,
+             const MassRows* sourceRows = nullptr);
     LpmResult run();
 
 private:
@@ -47,7 +52,8 @@ private:
     void continueOnCoarse(int firstPass);
     void continueOnCoarseSeparable(int firstPass);
     std::vector<float> coarseOrders(const Medium& mc, LpmSettings& cs, const SolvePlan& coarsePlan,
-                                    std::vector<float> uc, double rPower, int cycle, int& p, TwoGridCount& count);
+                                    std::vector<float> uc, double rPower, int cycle, int& p, TwoGridCount& count,
+                                    const MassRows* rows = nullptr);
     void reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count, double rPower,
                        Clock::time_point start);
     /// One fine pass with separable sources: of the light jobs (src null) or of `src`; its
@@ -66,6 +72,10 @@ private:
     void recordPass(int pass, const Tally& t, Clock::time_point start, bool physical = true);
     double sourcePower(const std::vector<float>& u) const;  ///< sigma_s U V w_d summed, mean over RGB
     std::vector<Job> sourceJobs(const std::vector<float>& src) const { return jobs_.sourceJobs(src, M_, m_.albedo); }
+    /// One pass of the source `src` (held as the solve holds sources: by rows_ when set):
+    /// deposits added to `out`, tallies to t.
+    void propagate(const std::vector<float>& src, Tally& t, bool depositSh, std::vector<float>& out);
+    size_t voxelOf(size_t row) const { return rows_ ? rows_->voxel[row] : row; }
 
     const Medium& m_;
     const Lights& lights_;
@@ -75,6 +85,8 @@ private:
     std::vector<float>* initialSource_;
     LpmResult res_;
     size_t N_;
+    const MassRows* rows_;  ///< where sources are held (a coarse continuation's voxels with mass); null: by voxel
+    size_t S_;              ///< source rows: rows_->size(), or N_
     double V_;
     int M_, nb_, nc_, r_;
     size_t perVoxel_;

@@ -19,6 +19,7 @@
 #include "core/env_binning.h"
 #include "core/gmres.h"
 #include "core/half_buffer.h"
+#include "core/half_source_pass.h"
 #include "core/lpm_solve.h"
 #include "core/malloc_policy.h"
 #include "core/parallel.h"
@@ -113,11 +114,12 @@ LpmResult solveUnsubdivided(const Medium& m, const Lights& lights, const LpmSett
 }  // namespace
 
 LpmSolve::LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, const SolvePlan& plan,
-                   std::shared_ptr<LpmCache> cache, std::vector<float>* initialSource, const ShRows* shRows)
+                   std::shared_ptr<LpmCache> cache, std::vector<float>* initialSource, const ShRows* shRows,
+                   const MassRows* sourceRows)
     : m_(m), lights_(lights), s_(s), plan_(plan), cache_(std::move(cache)), initialSource_(initialSource),
-      N_(m.voxelCount()), V_(m.voxelVolume()), M_(plan.linearSource ? 4 : 1), nb_(0), nc_(shCount(plan.shOrder)),
-      r_(plan.raysSingle), perVoxel_(0), shRows_(shRows), quad_(s.directionsPerFace),
-      ff_(cache_->formFactors(s.directionsPerFace, plan.binsPerFace, m.g)),
+      N_(m.voxelCount()), rows_(sourceRows), S_(sourceRows ? sourceRows->size() : N_), V_(m.voxelVolume()),
+      M_(plan.linearSource ? 4 : 1), nb_(0), nc_(shCount(plan.shOrder)), r_(plan.raysSingle), perVoxel_(0),
+      shRows_(shRows), quad_(s.directionsPerFace), ff_(cache_->formFactors(s.directionsPerFace, plan.binsPerFace, m.g)),
       jobs_(quad_, *ff_, m.localToWorld, m.voxelVolume(), shCount(plan.shOrder), plan.gOut) {
     nb_ = ff_->binCount();
     perVoxel_ = size_t(nb_) * M_ * 3;
@@ -154,9 +156,11 @@ LpmSolve::LpmSolve(const Medium& m, const Lights& lights, const LpmSettings& s, 
     } else if (!initialSource_ || M_ != 1) {
         assignZeroed(next_, perVoxel_ * N_);  // else the initial source becomes next_ (startFromSource)
     }
+    if (rows_ && (!initialSource_ || M_ != 1 || nb_ == 1 || plan.separableSource))
+        throw Error("LpmSolve", "sources held by rows are for a coarse continuation's voxel-constant bins");
     runner_ = std::make_unique<PassRunner>(m, FoldShape{nb_, M_, nc_}, slopeVoxel_, res_.sh,
-                                           shRows_ ? shRows_->map() : nullptr);
-    if (initialSource_) assignZeroed(res_.sourceSum, N_ * size_t(nb_) * 3);
+                                           shRows_ ? shRows_->map() : nullptr, rows_ ? rows_->rowOf.data() : nullptr);
+    if (initialSource_) assignZeroed(res_.sourceSum, S_ * size_t(nb_) * 3);
 }
 
 void LpmSolve::recordPass(int pass, const Tally& t, Clock::time_point start, bool physical) {
@@ -185,17 +189,27 @@ void LpmSolve::recordPass(int pass, const Tally& t, Clock::time_point start, boo
 
 double LpmSolve::sourcePower(const std::vector<float>& u) const {
     double p = 0;
-    for (size_t v = 0; v < N_; ++v)
+    for (size_t v = 0; v < S_; ++v)
         for (int d = 0; d < nb_; ++d)
             for (int c = 0; c < 3; ++c)
-                p += double(u[(v * nb_ + d) * M_ * 3 + c]) * m_.sigmaT[v] * m_.albedo[c] * ff_->binWeight(d) * V_;
+                p += double(u[(v * nb_ + d) * M_ * 3 + c]) * m_.sigmaT[voxelOf(v)] * m_.albedo[c] * ff_->binWeight(d) *
+                     V_;
     return p / 3.0;
+}
+
+void LpmSolve::propagate(const std::vector<float>& src, Tally& t, bool depositSh, std::vector<float>& out) {
+    if (!rows_) {
+        runner_->run(sourceJobs(src), r_, t, depositSh, out);
+        return;
+    }
+    if (halfSlots_.empty()) halfSlots_.resize(4);
+    propagateRowSource(*runner_, jobs_, src, nb_, m_.albedo, r_, halfSlots_, *rows_, t, out);
 }
 
 // Coarse continuation: the sum of every propagated source (means), for the fine pass.
 void LpmSolve::addToSourceSum(const std::vector<float>& src, float scale) {
     if (!initialSource_) return;
-    parallelForChunks(N_ * size_t(nb_), 4096, [&](size_t b, size_t e) {
+    parallelForChunks(S_ * size_t(nb_), 4096, [&](size_t b, size_t e) {
         for (size_t i = b; i < e; ++i)
             for (int c = 0; c < 3; ++c) res_.sourceSum[i * 3 + c] += scale * src[i * M_ * 3 + c];
     });
@@ -232,12 +246,12 @@ bool LpmSolve::extrapolateTail(double last, double ratio) {
 // source sum (the two-grid cycle wants what it gives rise to beyond itself).
 void LpmSolve::startFromSource() {
     double power = 0;
-    for (size_t x = 0; x < N_; ++x)
+    for (size_t x = 0; x < S_; ++x)
         for (int d = 0; d < nb_; ++d)
             for (int c = 0; c < 3; ++c) {
                 const float u = (*initialSource_)[(x * nb_ + d) * 3 + c];
                 if (M_ != 1) next_[(x * nb_ + d) * M_ * 3 + c] = u;
-                power += double(u) * m_.sigmaT[x] * m_.albedo[c] * ff_->binWeight(d) * V_;
+                power += double(u) * m_.sigmaT[voxelOf(x)] * m_.albedo[c] * ff_->binWeight(d) * V_;
             }
     if (M_ == 1) next_ = std::move(*initialSource_);
     res_.injected = power / 3.0;
@@ -309,9 +323,9 @@ bool LpmSolve::iterate() {
             runSeparablePass(&sep_->unshot, t);
         } else {
             std::swap(unshot_, next_);
-            assignZeroed(next_, perVoxel_ * N_);
+            assignZeroed(next_, perVoxel_ * S_);
             if (pass_ > 1 || !initialSource_) addToSourceSum(unshot_);  // not the initial source
-            runner_->run(sourceJobs(unshot_), r_, t, depositSh_, next_);
+            propagate(unshot_, t, depositSh_, next_);
         }
         recordPass(pass_, t, tp);
     }

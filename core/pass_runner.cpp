@@ -6,6 +6,7 @@
 
 #include "core/fold_kernel.h"
 #include "core/malloc_policy.h"
+#include "core/mass_rows.h"
 #include "core/parallel.h"
 #include "core/sh_rows.h"
 #include "core/simd_clones.h"
@@ -50,19 +51,22 @@ struct FoldCoefs {
 LPM_SIMD_CLONES
 void foldDepositRange(size_t vb, size_t ve, const FoldShape& f, bool depositSh, size_t n, const FoldCoefs& k,
                       const std::vector<std::vector<float>>& phi, const std::vector<std::uint8_t>& slopeVoxel,
-                      const std::uint32_t* shRow, float* sh, float* out) {
+                      const std::uint32_t* shRow, const std::uint32_t* outRow, float* sh, float* out) {
     const int nb = f.bins, M = f.moments, nc = f.coeffs;
     const size_t perVoxel = size_t(nb) * M * 3;
     for (size_t x = vb; x < ve; ++x) {
-        float* un = &out[x * perVoxel];
+        const size_t unRow = outRow ? outRow[x] : x;
+        float* un = unRow == MassRows::kNone ? nullptr : &out[unRow * perVoxel];
         const int mx = slopeVoxel.empty() || slopeVoxel[x] ? M : 1;
         const size_t row = shRow ? shRow[x] : x;
         const bool toSh = depositSh && row != ShRows::kNone;
+        if (!un && !toSh) continue;
         for (size_t j = 0; j < n; ++j) {
             const float* p = &phi[j][x * 3 * M];  // [moment][rgb]; moment 0 is the mean
             if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
             const RgbRepeat rep(p);
             if (toSh) addTimesRgb(&sh[row * nc * 3], &k.shC[j * nc * 3], rep, nc);
+            if (!un) continue;  // no mass: the source has no power there
             const float* cj = &k.binC[j * nb * 3];
             if (M == 1) {
                 addTimesRgb(un, cj, rep, nb);
@@ -86,7 +90,8 @@ void foldDepositRange(size_t vb, size_t ve, const FoldShape& f, bool depositSh, 
 /// of streaming through memory once per job.
 void foldDeposits(const FoldShape& f, bool depositSh, const Job* jobs, size_t n,
                   const std::vector<std::vector<float>>& phi, const std::vector<std::uint8_t>& slopeVoxel,
-                  const std::uint32_t* shRow, std::vector<float>& sh, std::vector<float>& out) {
+                  const std::uint32_t* shRow, const std::uint32_t* outRow, std::vector<float>& sh,
+                  std::vector<float>& out) {
     const int nb = f.bins, M = f.moments, nc = f.coeffs;
     const size_t N = phi.empty() ? 0 : phi[0].size() / (3 * size_t(M));
     FoldCoefs k;
@@ -98,16 +103,18 @@ void foldDeposits(const FoldShape& f, bool depositSh, const Job* jobs, size_t n,
             for (int s = 0; s < nc; ++s) k.shC[(j * nc + s) * 3 + c] = float(jobs[j].shCoef[s]);
         }
     parallelForChunks(N, 1024, [&](size_t vb, size_t ve) {
-        foldDepositRange(vb, ve, f, depositSh, n, k, phi, slopeVoxel, shRow, sh.data(), out.data());
+        foldDepositRange(vb, ve, f, depositSh, n, k, phi, slopeVoxel, shRow, outRow, sh.data(), out.data());
     });
 }
 
 }  // namespace
 
 PassRunner::PassRunner(const Medium& m, FoldShape shape, const std::vector<std::uint8_t>& slopeVoxel,
-                       std::vector<float>& sh, const std::uint32_t* shRow)
-    : m_(m), shape_(shape), slopeVoxel_(slopeVoxel), sh_(sh), shRow_(shRow) {
+                       std::vector<float>& sh, const std::uint32_t* shRow, const std::uint32_t* outRow)
+    : m_(m), shape_(shape), slopeVoxel_(slopeVoxel), sh_(sh), shRow_(shRow), outRow_(outRow) {
     if (shRow_ && shape_.coeffs == 1) throw Error("PassRunner", "the isotropic fold takes no SH row map");
+    if (outRow_ && (shape_.bins == 1 || shape_.moments != 1))
+        throw Error("PassRunner", "rows of the next source are for voxel-constant sources of several bins");
 }
 
 void PassRunner::releaseBuffers() const { buffers_ = std::vector<std::vector<float>>(); }
@@ -217,7 +224,7 @@ void PassRunner::runFilled(const std::vector<Job>& jobs, size_t batch, int r, Ta
     for (size_t b0 = 0; b0 < jobs.size(); b0 += std::max<size_t>(1, batch)) starts.push_back(b0);
     sweepInBatches(jobs, starts, r, total, before,
                    [&](const Job* js, size_t n, const std::vector<std::vector<float>>& phi) {
-                       foldDeposits(shape_, depositSh, js, n, phi, slopeVoxel_, shRow_, sh_, out);
+                       foldDeposits(shape_, depositSh, js, n, phi, slopeVoxel_, shRow_, outRow_, sh_, out);
                    });
 }
 

@@ -28,11 +28,15 @@ public:
     /// `sh` ([row][coeff][rgb]) receives the SH deposits of passes run with depositSh;
     /// voxel v's row is shRow[v] (core/sh_rows.h: none where it is ShRows::kNone), or v
     /// when shRow is null. The isotropic fold (one coefficient) takes no row map.
+    /// `outRow`: where the next source `out` holds voxel v's row (core/mass_rows.h: none
+    /// without mass, whose deposits are not folded into it); null: row = voxel. Only for a
+    /// voxel-constant source of several bins.
     PassRunner(const Medium& m, FoldShape shape, const std::vector<std::uint8_t>& slopeVoxel, std::vector<float>& sh,
-               const std::uint32_t* shRow = nullptr);
+               const std::uint32_t* shRow = nullptr, const std::uint32_t* outRow = nullptr);
 
     /// Sweeps `jobs` with r rays per voxel; adds their tallies to `total`, their unshot
-    /// deposits to `out` ([voxel][bin][moment][rgb]) and, with depositSh, their SH to sh.
+    /// deposits to `out` ([row][bin][moment][rgb], row = outRow[voxel]) and, with depositSh,
+    /// their SH to sh.
     void run(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const;
 
     /// run() of the general fold in batches of `batch` consecutive jobs, `before(b)` run
@@ -77,6 +81,7 @@ private:
     const std::vector<std::uint8_t>& slopeVoxel_;
     std::vector<float>& sh_;
     const std::uint32_t* shRow_;
+    const std::uint32_t* outRow_;
     mutable std::vector<std::vector<float>> buffers_;
 };
 

@@ -38,52 +38,39 @@ void forEachCoarseVoxel(const Medium& f, const Medium& c, const Fn& fn) {
 
 }  // namespace
 
-FineCoarseMap::FineCoarseMap(const Medium& f, const Medium& c) : coarseVoxels(c.voxelCount()) {
-    std::vector<float> mass;  // [coarse voxel] the children's sigma_t summed in child order
-    assignZeroed(mass, coarseVoxels);
-    forEachCoarseVoxel(f, c, [&](size_t ci, const size_t* kids) {
-        double sigma = 0;
-        for (int k = 0; k < 8; ++k)
-            if (kids[k] != Medium::npos) sigma += f.sigmaT[kids[k]];
-        mass[ci] = float(sigma);
-    });
-    std::vector<std::uint32_t> rowOf(coarseVoxels, kNone);
-    for (size_t ci = 0; ci < coarseVoxels; ++ci)
-        if (mass[ci] > 0) {
-            rowOf[ci] = std::uint32_t(rowVoxel.size());
-            rowVoxel.push_back(std::uint32_t(ci));
-        }
-    sigmaSum.resize(rowVoxel.size());
-    for (size_t row = 0; row < rowVoxel.size(); ++row) sigmaSum[row] = mass[rowVoxel[row]];
+FineCoarseMap::FineCoarseMap(const Medium& f, const Medium& c) : coarseRows(c) {
+    assignZeroed(sigmaSum, rows());
     assignZeroed(parent, f.voxelCount());
     std::fill(parent.begin(), parent.end(), kNone);
-    children.assign(rowVoxel.size() * 8, kNone);
+    children.assign(rows() * 8, kNone);
     groupSize = f.sparse() ? Medium::kTileVoxels : 2 * size_t(f.nx) * size_t(f.ny);
     forEachCoarseVoxel(f, c, [&](size_t ci, const size_t* kids) {
-        const std::uint32_t row = rowOf[ci];
+        const std::uint32_t row = coarseRows.rowOf[ci];
         if (row == kNone) return;
+        double sigma = 0;
         for (int k = 0; k < 8; ++k)
             if (kids[k] != Medium::npos) {
                 children[size_t(row) * 8 + size_t(k)] = std::uint32_t(kids[k]);
                 parent[kids[k]] = row;
+                sigma += f.sigmaT[kids[k]];
             }
+        sigmaSum[row] = float(sigma);
     });
 }
 
 // Coarse buffers are tens of MiB: each is written into storage advised onto huge pages
 // (assignZeroed), where a plain copy or assign would fault it in 4 KiB at a time (about
 // 0.5 s of a plume-1M g = 0.6 bake went to those faults, docs/performance.md session 18).
-std::vector<float> SeparableSource::restricted(const FineCoarseMap& map) const {
+std::vector<float> SeparableSource::restricted() const {
     std::vector<float> out;
+    assignZeroed(out, shape.size());
     const size_t nb = size_t(bins);
-    assignZeroed(out, map.coarseVoxels * nb * 3);
     parallelForChunks(coarseRows, 1 << 11, [&](size_t pb, size_t pe) {
         for (size_t p = pb; p < pe; ++p)
             for (size_t d = 0; d < nb; ++d)
                 for (size_t c = 0; c < 3; ++c) {
                     const size_t h = heldIndex(p, d, c);
-                    out[(size_t(map.rowVoxel[p]) * nb + d) * 3 + c] =
-                        offset.empty() ? shape.at(h) : shape.at(h) + offsetAt(h);
+                    out[(p * nb + d) * 3 + c] = offset.empty() ? shape.at(h) : shape.at(h) + offsetAt(h);
                 }
     });
     return out;
@@ -95,45 +82,19 @@ float SeparableSource::offsetAt(size_t h) const {
     return p;
 }
 
-namespace {
-
-/// x's rows in half precision, bin-major: row p is x's row voxel(p) ([voxel][bin][rgb]).
-template <class Voxel>
-HalfBuffer holdRows(const std::vector<float>& x, int bins, size_t rows, const Voxel& voxel) {
-    const size_t nb = size_t(bins);
-    // The largest magnitude among the held rows (in parallel runs, their maximum: exact).
-    constexpr size_t kRun = 1 << 11;
-    std::vector<float> largest((rows + kRun - 1) / kRun, 0.0f);
-    parallelForChunks(rows, kRun, [&](size_t pb, size_t pe) {
-        float m = 0;
-        for (size_t p = pb; p < pe; ++p)
-            for (size_t i = 0; i < nb * 3; ++i) {
-                const float a = std::fabs(x[voxel(p) * nb * 3 + i]);
-                if (std::isfinite(a)) m = std::max(m, a);
-            }
-        largest[pb / kRun] = m;
-    });
+HalfBuffer SeparableSource::holdByBin(const std::vector<float>& x, int bins) {
     HalfBuffer out;
-    out.scale = HalfBuffer::scaleFor(largest.empty() ? 0.0f : *std::max_element(largest.begin(), largest.end()));
+    out.scale = HalfBuffer::scaleFor(largestFinite(x));
     const float inverse = 1.0f / out.scale;  // a power of two: exact
-    assignZeroed(out.bits, rows * nb * 3);
-    parallelForChunks(rows, kRun, [&](size_t pb, size_t pe) {
+    assignZeroed(out.bits, x.size());
+    const size_t nb = size_t(bins), rows = x.size() / (3 * nb);
+    parallelForChunks(rows, 1 << 11, [&](size_t pb, size_t pe) {
         for (size_t p = pb; p < pe; ++p)
             for (size_t d = 0; d < nb; ++d)
                 for (size_t c = 0; c < 3; ++c)
-                    out.bits[(d * rows + p) * 3 + c] = halfFromFloat(x[(voxel(p) * nb + d) * 3 + c] * inverse);
+                    out.bits[(d * rows + p) * 3 + c] = halfFromFloat(x[(p * nb + d) * 3 + c] * inverse);
     });
     return out;
-}
-
-}  // namespace
-
-HalfBuffer SeparableSource::holdByBin(const std::vector<float>& x, int bins) {
-    return holdRows(x, bins, x.size() / (3 * size_t(bins)), [](size_t p) { return p; });
-}
-
-HalfBuffer SeparableSource::holdRowsByBin(const std::vector<float>& x, int bins, const FineCoarseMap& map) {
-    return holdRows(x, bins, map.rows(), [&](size_t p) { return size_t(map.rowVoxel[p]); });
 }
 
 namespace {

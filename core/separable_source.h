@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "core/half_buffer.h"
+#include "core/mass_rows.h"
 #include "core/medium.h"
 
 namespace lpm {
@@ -29,26 +30,22 @@ namespace lpm {
 struct Job;
 
 /// Fine voxels and their coarse parents (the coarse medium of core/multires.h: voxels
-/// twice as large, fine voxel (x, y, z) the child of coarse voxel (x/2, y/2, z/2)). Only
-/// the coarse voxels that hold mass (a child with sigma_t > 0) get a row, numbered in the
-/// coarse medium's storage order: a source elsewhere has no power (the sweeps' source is
-/// sigma_s U), and on a sparse medium about half of the coarse grid's stored voxels are
-/// empty (the plume-1M: 131,743 of 254,464; its tiles' fringes). Every coarse-sized buffer
-/// of a separable source is indexed by row (docs/multires.md, "Coarse rows").
+/// twice as large, fine voxel (x, y, z) the child of coarse voxel (x/2, y/2, z/2)), by the
+/// coarse voxels' rows with mass (core/mass_rows.h): every coarse-sized buffer of a
+/// separable source, and of the coarse solve it hands to, holds those rows only.
 struct FineCoarseMap {
     static constexpr std::uint32_t kNone = ~std::uint32_t(0);
+    MassRows coarseRows;  ///< the coarse medium's voxels with mass
     /// [fine voxel] its parent's row; kNone outside the block and under a parent without
     /// mass (such a voxel's sigma_t is 0)
     std::vector<std::uint32_t> parent;
     std::vector<std::uint32_t> children;  ///< [row][8] its fine voxels, kNone where absent
-    std::vector<float> sigmaSum;          ///< [row] sum of its children's sigma_t (> 0)
-    std::vector<std::uint32_t> rowVoxel;  ///< [row] its coarse voxel
-    size_t coarseVoxels = 0;              ///< the coarse medium's stored voxels
+    std::vector<float> sigmaSum;          ///< [row] sum of its children's sigma_t
     /// Fine voxels [k groupSize, (k + 1) groupSize) have parents no other group has: a fine
     /// tile when the fine medium is sparse, else two z-slices.
     size_t groupSize = 1;
     FineCoarseMap(const Medium& fine, const Medium& coarse);
-    size_t rows() const { return sigmaSum.size(); }
+    size_t rows() const { return coarseRows.size(); }
 };
 
 /// A fine-grid source held separably (see the file comment), its coarse buffers by the
@@ -69,13 +66,11 @@ struct SeparableSource {
 
     /// x [row][bin][rgb] in half precision, held bin-major (as shape and offset).
     static HalfBuffer holdByBin(const std::vector<float>& x, int bins);
-    /// x [coarse voxel][bin][rgb] (a coarse solve's result) at map's rows, held as above.
-    static HalfBuffer holdRowsByBin(const std::vector<float>& x, int bins, const FineCoarseMap& map);
     /// Where (row, bin, channel) lies in shape and offset.
     size_t heldIndex(size_t row, size_t bin, size_t c) const { return (bin * coarseRows + row) * 3 + c; }
-    /// The source restricted to the coarse grid, R_C + P_C [coarse voxel][bin][rgb] (what
-    /// restrictSource gives for the full source; 0 at coarse voxels without mass).
-    std::vector<float> restricted(const FineCoarseMap& map) const;
+    /// The source restricted to the coarse grid, R_C + P_C [row][bin][rgb] (what
+    /// restrictSource gives for the full source, at the rows).
+    std::vector<float> restricted() const;
     /// P_C at held index h (heldIndex).
     float offsetAt(size_t h) const;
     /// out [fine voxel][rgb] = U_f(bin), 0 for voxels outside the block.

@@ -49,12 +49,17 @@ LpmSettings coarseSettings(const LpmSettings& s, const SolvePlan& plan, const st
 
 // Iterates the orders of the restricted source `uc` (taken over) on the coarse grid
 // (passes numbered from p on); returns the sources it propagated beyond uc (the tail).
+// With `rows` (core/mass_rows.h) both are held by those rows; so is the coarse solve's
+// every source, unless its plan keeps slopes (a linear source is swept as held, by voxel).
 std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, const SolvePlan& coarsePlan,
-                                          std::vector<float> uc, double rPower, int cycle, int& p,
-                                          TwoGridCount& count) {
+                                          std::vector<float> uc, double rPower, int cycle, int& p, TwoGridCount& count,
+                                          const MassRows* rows) {
     cs.maxOrders = std::max(1, s_.maxOrders - p);
     cs.tolerance = std::fabs(rPower) > 0 ? s_.tolerance * res_.injected / std::fabs(rPower) : s_.tolerance;
-    LpmResult cr = LpmSolve(mc, Lights{}, cs, coarsePlan, cache_, &uc).run();
+    const size_t width = size_t(nb_) * 3;
+    const bool byVoxel = rows && coarsePlan.linearSource;
+    if (byVoxel) uc = expandRows(*rows, uc, width);
+    LpmResult cr = LpmSolve(mc, Lights{}, cs, coarsePlan, cache_, &uc, nullptr, byVoxel ? nullptr : rows).run();
     for (size_t i = 1; i < cr.passes.size(); ++i) {
         PassStats ps = cr.passes[i];
         ps.pass = p++;
@@ -66,7 +71,7 @@ std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, con
     res_.segments += cr.segments;
     if (cycle == 0)
         for (const std::string& d : cr.decisions) res_.decisions.push_back("coarse grid: " + d);
-    return std::move(cr.sourceSum);
+    return byVoxel ? gatherRows(*rows, cr.sourceSum, width) : std::move(cr.sourceSum);
 }
 
 void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
@@ -151,8 +156,8 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         returnFreedHeapPages();
         // E = r + tail. The tail is held in half precision (core/half_buffer.h): the same
         // rounded tail is added to E and taken from r', so the rounding moves no energy.
-        r.offset.push_back(SeparableSource::holdRowsByBin(
-            coarseOrders(mc, cs, coarsePlan, r.restricted(sep_->map), rPower, cycles, p, count), r.bins, sep_->map));
+        r.offset.push_back(SeparableSource::holdByBin(
+            coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count, &sep_->map.coarseRows), r.bins));
         const auto tf = Clock::now();
         Tally t;
         runSeparablePass(&r, t);

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <vector>
 
+#include "core/multires.h"
 #include "core/rng.h"
 #include "core/separable_source.h"
 #include "core/sweep.h"
@@ -91,8 +92,7 @@ BENCHMARK(BM_SweepBatch16)->ArgsProduct({{1, 2}, {32, 96}})->Unit(benchmark::kMi
 void BM_SeparableFold(benchmark::State& state) {
     const int n = int(state.range(0));
     const Medium fine = denseBlock(n);
-    Medium coarse;
-    coarse.allocate((n + 1) / 2, (n + 1) / 2, (n + 1) / 2);
+    const Medium coarse = coarsen(fine);  // every coarse voxel with mass: a row each
     const FineCoarseMap map(fine, coarse);
     constexpr int kBins = 24, kCoeffs = 9;
     const std::vector<double> binWeight(kBins, 4 * 3.14159265358979 / kBins);

@@ -54,10 +54,7 @@ Medium blockWithEmptySlab(std::uint64_t seed) {
 
 /// x [row][width] of map's rows at their coarse voxels ([coarse voxel][width], 0 elsewhere).
 std::vector<float> atCoarseVoxels(const FineCoarseMap& map, const std::vector<float>& x, size_t width) {
-    std::vector<float> out(map.coarseVoxels * width, 0.0f);
-    for (size_t row = 0; row < map.rows(); ++row)
-        for (size_t i = 0; i < width; ++i) out[size_t(map.rowVoxel[row]) * width + i] = x[row * width + i];
-    return out;
+    return expandRows(map.coarseRows, x, width);
 }
 
 // Random jobs (bin and SH coefficients) and their random deposits: a pass's fold input.
@@ -125,7 +122,7 @@ void expectFoldsMatch(const Medium& f, const FineCoarseMap& map, const FoldInput
                 ASSERT_NEAR(s.magnitude[v * 3 + ch], m, 1e-5 * (1 + m)) << v;
             }
         // R_C is held in half precision: within 2^-11 of each value (core/half_buffer.h).
-        const std::vector<float> r = s.restricted(map);
+        const std::vector<float> r = atCoarseVoxels(map, s.restricted(), size_t(in.bins) * 3);
         ASSERT_EQ(r.size(), restrictedFull.size());
         for (size_t i = 0; i < r.size(); ++i)
             ASSERT_NEAR(r[i], restrictedFull[i],
@@ -142,15 +139,16 @@ TEST(SeparableSource, MapPairsEveryFineVoxelOfTheBlockWithItsParentsRow) {
     const Medium f = blockWithEmptySlab(3);
     const Medium c = coarsen(f);
     const FineCoarseMap map(f, c);
-    ASSERT_EQ(map.coarseVoxels, c.voxelCount());
-    ASSERT_EQ(map.rowVoxel.size(), map.rows());
-    std::vector<std::uint32_t> rowOf(c.voxelCount(), FineCoarseMap::kNone);
+    const std::vector<std::uint32_t>& rowOf = map.coarseRows.rowOf;
+    ASSERT_EQ(rowOf.size(), c.voxelCount());
+    ASSERT_EQ(map.sigmaSum.size(), map.rows());
     for (size_t row = 0; row < map.rows(); ++row) {
+        const std::uint32_t ci = map.coarseRows.voxel[row];
         if (row > 0) {
-            ASSERT_LT(map.rowVoxel[row - 1], map.rowVoxel[row]);
+            ASSERT_LT(map.coarseRows.voxel[row - 1], ci);
         }
-        rowOf[map.rowVoxel[row]] = std::uint32_t(row);
-        EXPECT_NEAR(map.sigmaSum[row], 8 * c.sigmaT[map.rowVoxel[row]], 1e-4) << row;
+        ASSERT_EQ(rowOf[ci], row);
+        EXPECT_NEAR(map.sigmaSum[row], 8 * c.sigmaT[ci], 1e-4) << row;
     }
     size_t withMass = 0;
     for (size_t ci = 0; ci < c.voxelCount(); ++ci) {
@@ -243,8 +241,7 @@ TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
     for (float& x : tail) x = float(rng.uniform()) - 0.3f;
     for (float& x : previous) x = 10.0f * (float(rng.uniform()) - 0.7f);
     s.offset.push_back(SeparableSource::holdByBin(previous, bins));
-    // The tail as a coarse solve returns it, [coarse voxel][bin][rgb], held at the rows.
-    s.offset.push_back(SeparableSource::holdRowsByBin(atCoarseVoxels(map, tail, size_t(bins) * 3), bins, map));
+    s.offset.push_back(SeparableSource::holdByBin(tail, bins));
     std::vector<float> offsetSum(tail.size());
     for (size_t p = 0; p < map.rows(); ++p)
         for (int d = 0; d < bins; ++d)
@@ -312,19 +309,16 @@ TEST(SeparableSource, PowerOfALargeSourceIsTheSumForAnyThreadCount) {
     s.shape = SeparableSource::holdByBin(shape, bins);
     s.offset.push_back(SeparableSource::holdByBin(tail, bins));
     const RGB albedo(0.9f, 0.8f, 0.7f);
-    const std::vector<float> r = s.restricted(map);
-    ASSERT_EQ(r.size(), map.coarseVoxels * bins * 3);
-    // Held bin-major, restricted in the solver's order [coarse voxel][bin][rgb]: each value
-    // the rounded shape plus the rounded tail of the same row, bin and channel.
-    const std::vector<float> want3 = atCoarseVoxels(map, shape, size_t(bins) * 3),
-                             tail3 = atCoarseVoxels(map, tail, size_t(bins) * 3);
-    for (size_t i = 0; i < r.size(); ++i) ASSERT_NEAR(r[i], want3[i] + tail3[i], std::ldexp(1.0f, -10)) << i;
+    const std::vector<float> r = s.restricted();
+    ASSERT_EQ(r.size(), map.rows() * bins * 3);
+    // Held bin-major, restricted in the solver's order [row][bin][rgb]: each value the
+    // rounded shape plus the rounded tail of the same row, bin and channel.
+    for (size_t i = 0; i < r.size(); ++i) ASSERT_NEAR(r[i], shape[i] + tail[i], std::ldexp(1.0f, -10)) << i;
     double want = 0;
     for (size_t row = 0; row < map.rows(); ++row)
         for (int d = 0; d < bins; ++d)
             for (int ch = 0; ch < 3; ++ch)
-                want += double(r[(size_t(map.rowVoxel[row]) * bins + d) * 3 + ch]) * map.sigmaSum[row] * albedo[ch] *
-                        w[size_t(d)];
+                want += double(r[(row * bins + d) * 3 + ch]) * map.sigmaSum[row] * albedo[ch] * w[size_t(d)];
     want *= f.voxelVolume() / 3.0;
     double one = 0, two = 0;
     {
