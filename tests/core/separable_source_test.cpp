@@ -368,27 +368,49 @@ TEST(SeparableSource, BakeStaysWithFullSourcesAgainstMonteCarlo) {
     EXPECT_LT(d, 5e-3);
 }
 
+namespace {
+
+/// The 32^3 scene of `cs` under the sky and sun, solved two-grid with separable fine
+/// sources (`separable`) and with full ones (`full`).
+struct SeparableAndFull {
+    LpmSettings settings;
+    size_t voxels = 0;
+    LpmResult separable, full;
+    explicit SeparableAndFull(const Case& cs) {
+        Scene sc = makeScene(cs, 32);
+        sc.lights.env = &sc.sky;
+        LpmSettings fullSettings;
+        settings.multires = fullSettings.multires = 1;
+        fullSettings.separableSource = 0;
+        voxels = sc.medium.voxelCount();
+        separable = solveLpm(sc.medium, sc.lights, settings);
+        full = solveLpm(sc.medium, sc.lights, fullSettings);
+    }
+    /// Separable sources were used, converged below the tolerance, keep the energy balance
+    /// and stay within 5e-3 band-0 relative RMS of full sources.
+    void expectConvergedNearFull() const {
+        EXPECT_TRUE(saidDecision(separable, "separable fine sources"));
+        std::printf("residual: separable %.3g, full %.3g\n", separable.residual, full.residual);
+        EXPECT_TRUE(separable.converged);
+        EXPECT_LT(separable.residual, settings.tolerance);
+        EXPECT_NEAR(separable.absorbed + separable.escaped + separable.unshot, separable.injected,
+                    2e-3 * separable.injected);
+        const double d = band0Difference(separable, full, voxels, 0.0);
+        std::printf("band-0 relative RMS, separable against full sources: %.3g\n", d);
+        EXPECT_LT(d, 5e-3);
+    }
+};
+
+}  // namespace
+
 // A thick cloud at albedo 0.99 (GMRES on the coarse grid): the two-grid cycle's residuals
 // change sign, and the separable form must stay linear there (a shape divided by a signed
 // angular integral lost those sources and stalled the cycle above the tolerance on the
 // 1M-voxel cumulus). It converges and stays within 5e-3 of full sources.
 TEST(SeparableSource, ThickHighAlbedoCycleConverges) {
-    Case cs{"cloud g0.6 a0.99", VolumeKind::Cloud, 0.6, 0.99, 30.0};
-    Scene sc = makeScene(cs, 32);
-    sc.lights.env = &sc.sky;
-    LpmSettings sep, full;
-    sep.multires = full.multires = 1;
-    full.separableSource = 0;
-    const LpmResult rs = solveLpm(sc.medium, sc.lights, sep), rf = solveLpm(sc.medium, sc.lights, full);
-    EXPECT_TRUE(saidDecision(rs, "separable fine sources"));
-    EXPECT_TRUE(saidDecision(rs, "coarse grid: Krylov (GMRES) acceleration"));
-    std::printf("residual: separable %.3g, full %.3g\n", rs.residual, rf.residual);
-    EXPECT_TRUE(rs.converged);
-    EXPECT_LT(rs.residual, sep.tolerance);
-    EXPECT_NEAR(rs.absorbed + rs.escaped + rs.unshot, rs.injected, 2e-3 * rs.injected);
-    const double d = band0Difference(rs, rf, sc.medium.voxelCount(), 0.0);
-    std::printf("band-0 relative RMS, separable against full sources: %.3g\n", d);
-    EXPECT_LT(d, 5e-3);
+    const SeparableAndFull r(Case{"cloud g0.6 a0.99", VolumeKind::Cloud, 0.6, 0.99, 30.0});
+    EXPECT_TRUE(saidDecision(r.separable, "coarse grid: Krylov (GMRES) acceleration"));
+    r.expectConvergedNearFull();
 }
 
 // A cloud whose coarse voxels are optically thick enough for the coarse plan to keep
@@ -397,18 +419,7 @@ TEST(SeparableSource, ThickHighAlbedoCycleConverges) {
 // sum gathered back (core/two_grid.cpp). It converges, keeps the energy balance and stays
 // within 5e-3 of full sources.
 TEST(SeparableSource, LinearCoarseSourceIsSweptByVoxel) {
-    Case cs{"cloud g0.6 a0.95", VolumeKind::Cloud, 0.6, 0.95, 30.0};
-    Scene sc = makeScene(cs, 32);
-    sc.lights.env = &sc.sky;
-    LpmSettings sep, full;
-    sep.multires = full.multires = 1;
-    full.separableSource = 0;
-    const LpmResult rs = solveLpm(sc.medium, sc.lights, sep), rf = solveLpm(sc.medium, sc.lights, full);
-    ASSERT_TRUE(saidDecision(rs, "separable fine sources"));
-    ASSERT_TRUE(saidDecision(rs, "coarse grid: linear source"));
-    EXPECT_TRUE(rs.converged);
-    EXPECT_NEAR(rs.absorbed + rs.escaped + rs.unshot, rs.injected, 2e-3 * rs.injected);
-    const double d = band0Difference(rs, rf, sc.medium.voxelCount(), 0.0);
-    std::printf("band-0 relative RMS, separable against full sources: %.3g\n", d);
-    EXPECT_LT(d, 5e-3);
+    const SeparableAndFull r(Case{"cloud g0.6 a0.95", VolumeKind::Cloud, 0.6, 0.95, 30.0});
+    ASSERT_TRUE(saidDecision(r.separable, "coarse grid: linear source"));
+    r.expectConvergedNearFull();
 }
