@@ -37,7 +37,8 @@ struct FineCoarseMap {
     static constexpr std::uint32_t kNone = ~std::uint32_t(0);
     MassRows coarseRows;  ///< the coarse medium's voxels with mass
     /// [fine voxel] its parent's row; kNone outside the block and under a parent without
-    /// mass (such a voxel's sigma_t is 0)
+    /// mass (such a voxel's sigma_t is 0, or so small that its parent's, the mean over 8
+    /// children, rounds to 0 in float: the children's sum below 6e-45)
     std::vector<std::uint32_t> parent;
     std::vector<std::uint32_t> children;  ///< [row][8] its fine voxels, kNone where absent
     std::vector<float> sigmaSum;          ///< [row] sum of its children's sigma_t
