@@ -212,6 +212,10 @@ std::shared_ptr<EnvInput> readEnvironmentStage(const BakeOptions& o, BakeContext
 LpmSettings solveSettings(const BakeOptions& o, BakeContext* context, const Log& log) {
     LpmSettings settings = o.solver;
     settings.sunTerms = o.sunTerm == 1 || (o.sunTerm < 0 && o.g != 0.0);
+    // Directional SH stays held by the written voxels' rows: the writer reads it through
+    // them (its peak then holds the rows, not one row per stored voxel); the stages that
+    // read it by voxel (verify, the sun terms) expand it first.
+    settings.keepShRows = true;
     if (context && !context->solverCache) context->solverCache = std::make_shared<LpmCache>();
     // Without a sequence the cache still holds the plan's environment binning for the solve.
     settings.cache = context ? context->solverCache : std::make_shared<LpmCache>();
@@ -326,7 +330,8 @@ std::vector<float> separateSunTerms(const BakeOptions& o, bool sunTermsAsked, bo
 }
 
 /// 5. What the writer needs: the solve block's place in the input and its values.
-DenseBake denseBake(const VolumeInput& vol, const LpmResult& res, const std::vector<float>& scatter) {
+/// The writer frees res.sh once its grids hold the values.
+DenseBake denseBake(const VolumeInput& vol, LpmResult& res, const std::vector<float>& scatter) {
     const Medium& m = vol.medium;
     DenseBake db;
     db.blockMin = vol.blockMin;
@@ -340,6 +345,8 @@ DenseBake denseBake(const VolumeInput& vol, const LpmResult& res, const std::vec
     db.nz = m.nz;
     db.coeffs = res.coeffs;
     db.sh = vol.empty ? nullptr : res.sh.data();
+    db.shRow = res.shRow.empty() ? nullptr : res.shRow.data();
+    db.releaseSh = vol.empty ? nullptr : &res.sh;
     db.emission = (!vol.empty && m.hasEmission()) ? m.emission.data() : nullptr;
     db.scatter = scatter.empty() ? nullptr : scatter.data();
     for (const SunTerm& t : res.sunTerms) db.sunTransmittance.push_back(t.transmittance.data());
@@ -381,6 +388,7 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
 
     const LpmSettings settings = solveSettings(o, context, log);
     LpmResult res = solveStage(o, vol, lights, settings, sum, log);
+    if (verifySettings(o).probes > 0 || !res.sunTerms.empty()) res.expandSh();
     verifyStage(o, vol, lights, res, sum, log);
     const std::vector<float> scatter = separateSunTerms(o, settings.sunTerms, vol.empty, res, sum, log);
 

@@ -62,6 +62,10 @@ struct LpmSettings {
     /// Also return each sun's beam transmittance (LpmResult::sunTerms) so its single
     /// scattering can be stored exactly beside the SH (core/sun_term.h); res.sh is unchanged.
     bool sunTerms = false;
+    /// Return a directional SH result held by the written voxels' rows (LpmResult::shRow,
+    /// core/sh_rows.h) instead of one row per stored voxel: for a caller that reads it
+    /// through shRow (the bake's writer) or expands it (LpmResult::expandSh) when it must.
+    bool keepShRows = false;
     /// Optional: precomputations shared between solves (the frames of a sequence); the
     /// results are the same without it.
     std::shared_ptr<LpmCache> cache;

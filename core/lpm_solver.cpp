@@ -24,6 +24,7 @@
 #include "core/malloc_policy.h"
 #include "core/parallel.h"
 #include "core/scratch_pool.h"
+#include "core/sh_rows.h"
 #include "core/subdivide.h"
 
 namespace lpm {
@@ -85,6 +86,7 @@ LpmResult solveSubdivided(const Medium& m, const Lights& lights, const LpmSettin
     const int k = plan.subdivide;
     LpmSettings fs = s;
     fs.subdivide = 1;
+    fs.keepShRows = false;  // averaged back voxel by voxel
     const Medium fm = subdivided(m, k);
     LpmResult res = solveLpm(fm, lights, fs);
     res.sh = averageBack(m, fm, k, res.sh, size_t(res.coeffs) * 3);
@@ -96,17 +98,19 @@ LpmResult solveSubdivided(const Medium& m, const Lights& lights, const LpmSettin
 }
 
 /// The solve on m's own voxels (delta-M scaled when planned), its SH result held only for
-/// the wanted voxels (core/sh_rows.h) and expanded to one row per stored voxel once the
-/// solve's buffers are gone: the solve's peak never holds both.
+/// the wanted voxels (core/sh_rows.h): returned so with s.keepShRows, else expanded to
+/// one row per stored voxel once the solve's buffers are gone (the solve's peak never
+/// holds both).
 LpmResult solveUnsubdivided(const Medium& m, const Lights& lights, const LpmSettings& s, const SolvePlan& plan) {
-    const ShRows rows(m, shCount(plan.shOrder));
+    ShRows rows(m, shCount(plan.shOrder));
     LpmResult res = plan.deltaM
                         ? LpmSolve(deltaMScaled(m, plan.deltaMFraction), lights, s, plan, s.cache, nullptr, &rows).run()
                         : LpmSolve(m, lights, s, plan, s.cache, nullptr, &rows).run();
     if (rows.compact()) {
         releaseScratchPool();
-        returnFreedHeapPages();  // the pages kept for the passes' buffers: the full result takes new ones
-        rows.expand(res.sh, res.coeffs);
+        returnFreedHeapPages();  // the pages kept for the passes' buffers: what follows takes new ones
+        if (s.keepShRows) res.shRow = rows.takeMap();
+        else rows.expand(res.sh, res.coeffs);
     }
     return res;
 }
@@ -377,6 +381,17 @@ SolvePlan planLpm(const Medium& m, const Lights& lights, const LpmSettings& s) {
     std::shared_ptr<LpmCache> cache = s.cache ? s.cache : std::make_shared<LpmCache>();
     const std::shared_ptr<const EnvBinning> binned = binning(m, lights, s, *cache);
     return planSolve(summarizeScene(m, lights, binned.get(), false), s, maxThreads());
+}
+
+const float* LpmResult::shAt(size_t voxel) const {
+    if (shRow.empty()) return &sh[voxel * size_t(coeffs) * 3];
+    const std::uint32_t row = shRow.at(voxel);
+    return row == ShRows::kNone ? nullptr : &sh[size_t(row) * size_t(coeffs) * 3];
+}
+
+void LpmResult::expandSh() {
+    expandShRows(sh, shRow, coeffs);
+    shRow = std::vector<std::uint32_t>();
 }
 
 LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& settings) {

@@ -32,7 +32,11 @@ struct PassStats {
 struct LpmResult {
     int shOrder = 0;        ///< effective SH order of `sh`
     int coeffs = 1;         ///< (shOrder + 1)^2
-    std::vector<float> sh;  ///< [voxel][coeff][rgb] SH coefficients of S(x, w)
+    std::vector<float> sh;  ///< [row][coeff][rgb] SH coefficients of S(x, w), row below
+    /// Stored voxel v's row of sh: shRow[v] (ShRows::kNone: none, S = 0 there) when the
+    /// solve ran with LpmSettings::keepShRows and kept rows only for the voxels written;
+    /// empty: row = voxel.
+    std::vector<std::uint32_t> shRow;
     std::vector<PassStats> passes;
     double injected = 0;  ///< external power (environment, suns, emission), mean over RGB
     double absorbed = 0;  ///< summed over passes
@@ -53,10 +57,15 @@ struct LpmResult {
     /// propagated beyond the initial one, plus the unshot remainder, [voxel][bin][rgb].
     std::vector<float> sourceSum;
 
+    /// Voxel v's row of sh, or null where none is held (S = 0).
+    const float* shAt(size_t voxel) const;
     RGB coeff(size_t voxel, int k) const {
-        const float* p = &sh[(voxel * coeffs + k) * 3];
-        return {p[0], p[1], p[2]};
+        const float* p = shAt(voxel);
+        if (!p) return RGB(0.0f);
+        return {p[k * 3], p[k * 3 + 1], p[k * 3 + 2]};
     }
+    /// Turns sh into one row per stored voxel (shRow emptied); nothing when it is already.
+    void expandSh();
 };
 
 /// What solveLpm will do for these inputs (core/solve_plan.h), without solving: for

@@ -1,6 +1,7 @@
 // The SH result's rows (core/sh_rows.h).
 #include "core/sh_rows.h"
 
+#include <algorithm>
 #include <cstring>
 
 #include "core/error.h"
@@ -29,14 +30,27 @@ void ShRows::expand(std::vector<float>& sh, int coeffs) const {
     if (sh.size() != count_ * width)
         throw Error("ShRows", "the SH result has " + std::to_string(sh.size()) + " floats for " +
                                   std::to_string(count_) + " rows of " + std::to_string(width));
+    expandShRows(sh, row_, coeffs);
+}
+
+void expandShRows(std::vector<float>& sh, const std::vector<std::uint32_t>& row, int coeffs) {
+    if (row.empty()) return;
+    const size_t width = size_t(coeffs) * 3, voxels = row.size();
+    std::uint32_t last = 0;  // the largest row held
+    for (std::uint32_t r : row)
+        if (r != ShRows::kNone) last = std::max(last, r);
+    if ((size_t(last) + 1) * width > sh.size())
+        throw Error("ShRows", "row " + std::to_string(last) + " is beyond the SH result's " +
+                                  std::to_string(sh.size() / width) + " rows");
     // Into new storage, faulted in and filled by all the threads (in place, from the last
     // row down, one thread would fault 2 MiB pages in for 0.1-0.2 s on the 1M plume); the
     // end of a solve is far below its peak, so both copies fit.
     std::vector<float> full;
-    assignZeroed(full, voxels_ * width);
-    parallelForChunks(voxels_, 4096, [&](size_t b, size_t e) {
+    assignZeroed(full, voxels * width);
+    parallelForChunks(voxels, 4096, [&](size_t b, size_t e) {
         for (size_t v = b; v < e; ++v)
-            if (row_[v] != kNone) std::memcpy(&full[v * width], &sh[size_t(row_[v]) * width], width * sizeof(float));
+            if (row[v] != ShRows::kNone)
+                std::memcpy(&full[v * width], &sh[size_t(row[v]) * width], width * sizeof(float));
     });
     sh.swap(full);
 }

@@ -6,8 +6,10 @@
 // of the stored voxels (1.53M stored, 1.11M written) held 43 MiB of rows nobody reads.
 // With Medium::wantedS set, the solve keeps rows only for the wanted voxels, in storage
 // order (row(v) is increasing in v), folds into them through row(), and expands the
-// result to one row per stored voxel when it returns (unwanted rows 0), so every caller
-// still indexes the result by stored voxel.
+// result to one row per stored voxel when it returns (unwanted rows 0), so a caller
+// indexes the result by stored voxel; unless it asks for the rows (LpmSettings::
+// keepShRows: the bake's writer reads them through LpmResult::shRow and frees them once
+// its grids hold them, so the write never holds 1.53M rows of 108 B).
 //
 // Only directional results are compacted (coeffs > 1): at order 0 a row is 12 B and the
 // isotropic fold adds to the result as one flat array.
@@ -38,10 +40,16 @@ public:
     /// Turns `sh` ([row][coeff][rgb], count() rows) into one row per stored voxel, 0 where
     /// none was held.
     void expand(std::vector<float>& sh, int coeffs) const;
+    /// The row map, handed over (this is left with the identity's empty map).
+    std::vector<std::uint32_t> takeMap() { return std::move(row_); }
 
 private:
     size_t voxels_ = 0, count_ = 0;
     std::vector<std::uint32_t> row_;
 };
+
+/// expand() of rows whose map `row` (one entry per stored voxel) was handed over: `sh`
+/// ([row][coeff][rgb]) becomes one row per stored voxel, 0 where row[v] is ShRows::kNone.
+void expandShRows(std::vector<float>& sh, const std::vector<std::uint32_t>& row, int coeffs);
 
 }  // namespace lpm

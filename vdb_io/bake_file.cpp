@@ -58,7 +58,7 @@ Stencil stencilAt(const DenseBake& b, const openvdb::Coord& c) {
 
 /// An empty grid of type GridT with `topo`'s transform and active voxels, all values 0.
 template <typename GridT>
-typename GridT::Ptr zeroGridLike(const openvdb::Vec3SGrid& topo) {
+typename GridT::Ptr zeroGridLike(const openvdb::MaskGrid& topo) {
     typename GridT::Ptr g = GridT::create(typename GridT::ValueType(0));
     g->setTransform(topo.transform().copy());
     g->tree().topologyUnion(topo.tree());
@@ -105,7 +105,7 @@ ValueT valueAt(const DensePlace& p, F value) {
 /// voxels with solved values, so no stencil index is npos there; the density's own voxels always have one from
 /// readVolume's block.
 template <typename GridT = openvdb::Vec3SGrid, typename F>
-std::vector<typename GridT::Ptr> fillGrids(const openvdb::Vec3SGrid& topo, const DenseBake& b, int count, F value) {
+std::vector<typename GridT::Ptr> fillGrids(const openvdb::MaskGrid& topo, const DenseBake& b, int count, F value) {
     using TreeT = typename GridT::TreeType;
     using ValueT = typename GridT::ValueType;
     std::vector<typename GridT::Ptr> grids;
@@ -132,21 +132,19 @@ std::vector<typename GridT::Ptr> fillGrids(const openvdb::Vec3SGrid& topo, const
 
 /// fillGrids of one grid.
 template <typename GridT = openvdb::Vec3SGrid, typename F>
-typename GridT::Ptr fillGrid(const openvdb::Vec3SGrid& topo, const DenseBake& b, F value) {
+typename GridT::Ptr fillGrid(const openvdb::MaskGrid& topo, const DenseBake& b, F value) {
     return fillGrids<GridT>(topo, b, 1, [&](size_t i, int) { return value(i); }).front();
 }
 
-/// The heap the output grids built on `topo` take: a leaf node and its value buffer per
-/// leaf, for the SH grids, the scatter grid, the emission grid (Vec3s) and the sun
-/// transmittances (float).
-std::size_t outputTreeBytes(const openvdb::Vec3SGrid& topo, const DenseBake& b) {
+/// The heap `vec3Grids` Vec3f grids and `floatGrids` float grids built on `topo` take: a
+/// leaf node and its value buffer per leaf.
+std::size_t outputTreeBytes(const openvdb::MaskGrid& topo, std::size_t vec3Grids, std::size_t floatGrids) {
     using Vec3Leaf = openvdb::Vec3STree::LeafNodeType;
     using FloatLeaf = openvdb::FloatTree::LeafNodeType;
     constexpr std::size_t kBlockOverhead = 16;  // glibc's chunk header, rounded
     const std::size_t vec3Leaf = sizeof(Vec3Leaf) + Vec3Leaf::SIZE * sizeof(openvdb::Vec3s) + 2 * kBlockOverhead;
     const std::size_t floatLeaf = sizeof(FloatLeaf) + FloatLeaf::SIZE * sizeof(float) + 2 * kBlockOverhead;
-    const std::size_t vec3Grids = std::size_t(b.coeffs) + 1 + (b.emission ? 1 : 0);
-    return topo.tree().leafCount() * (vec3Grids * vec3Leaf + b.sunTransmittance.size() * floatLeaf);
+    return topo.tree().leafCount() * (vec3Grids * vec3Leaf + floatGrids * floatLeaf);
 }
 
 double maxAbs(const openvdb::Vec3SGrid& g) {
@@ -154,6 +152,60 @@ double maxAbs(const openvdb::Vec3SGrid& g) {
     for (auto it = g.cbeginValueOn(); it; ++it)
         for (int c = 0; c < 3; ++c) m = std::max(m, double(std::fabs((*it)[c])));
     return m;
+}
+
+/// The SH grids sh_0 .. sh_{coeffs-1} on `topo` (zeros for an empty bake), named and tagged.
+std::vector<openvdb::Vec3SGrid::Ptr> shGrids(const openvdb::MaskGrid& topo, const DenseBake& b) {
+    std::vector<openvdb::Vec3SGrid::Ptr> sh;
+    if (b.sh)
+        sh = fillGrids(topo, b, b.coeffs, [&](size_t i, int k) {
+            const float* p = b.shAt(i);
+            return p ? openvdb::Vec3s(p[k * 3], p[k * 3 + 1], p[k * 3 + 2]) : openvdb::Vec3s(0.0f);
+        });
+    else
+        for (int k = 0; k < b.coeffs; ++k) sh.push_back(zeroGridLike<openvdb::Vec3SGrid>(topo));
+    for (int k = 0; k < b.coeffs; ++k) {
+        const openvdb::Vec3SGrid::Ptr& g = sh[size_t(k)];
+        g->setName("sh_" + std::to_string(k));
+        g->setGridClass(openvdb::GRID_UNKNOWN);    // order >= 1 terms go negative: not a fog volume
+        g->setVectorType(openvdb::VEC_INVARIANT);  // colour, not a vector: DCCs must not rotate it
+        const int l = shBand(k);
+        g->insertMeta("lpm:sh_index", openvdb::Int32Metadata(k));
+        g->insertMeta("lpm:sh_l", openvdb::Int32Metadata(l));
+        g->insertMeta("lpm:sh_m", openvdb::Int32Metadata(k - l * l - l));
+    }
+    return sh;
+}
+
+/// The direction-averaged S grid: b.scatter's values, else sh_0's times Y00 (so it needs
+/// only the grid, not the SH values).
+openvdb::Vec3SGrid::Ptr scatterGridOf(const openvdb::MaskGrid& topo, const DenseBake& b,
+                                      const openvdb::Vec3SGrid& sh0) {
+    openvdb::Vec3SGrid::Ptr s;
+    if (b.scatter) {
+        s = fillGrid(topo, b, [&](size_t i) {
+            const float* p = b.scatter + i * 3;
+            return openvdb::Vec3s(p[0], p[1], p[2]);
+        });
+    } else if (!b.sh) {
+        s = zeroGridLike<openvdb::Vec3SGrid>(topo);
+    } else {
+        s = zeroGridLike<openvdb::Vec3SGrid>(topo);
+        // The same topology, so the same leaves in the same order.
+        openvdb::tree::LeafManager<const openvdb::Vec3STree> from(sh0.tree());
+        openvdb::tree::LeafManager<openvdb::Vec3STree> to(s->tree());
+        if (from.leafCount() != to.leafCount()) throw std::logic_error("scatterGridOf: sh_0 has another topology");
+        const float y = float(kY00);
+        to.foreach ([&](openvdb::Vec3STree::LeafNodeType& leaf, size_t n) {
+            const openvdb::Vec3STree::LeafNodeType& src = from.leaf(n);
+            for (auto it = leaf.beginValueOn(); it; ++it) it.setValue(src.getValue(it.pos()) * y);
+        });
+    }
+    s->setName("scatter");
+    s->setGridClass(openvdb::GRID_FOG_VOLUME);
+    s->setVectorType(openvdb::VEC_INVARIANT);
+    s->insertMeta("lpm:description", openvdb::StringMetadata("direction-averaged S = sh_0 * 0.282095"));
+    return s;
 }
 
 }  // namespace
@@ -168,7 +220,7 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
     // The lighting grids' topology: the input's active voxels (tiles voxelised so every
     // grid can hold per-voxel values) and the shell a trilinear lookup reads around them.
     const LightingTopology lt = lightingTopology(density, b);
-    const openvdb::Vec3SGrid::Ptr topo = lt.grid;
+    const openvdb::MaskGrid::Ptr topo = lt.grid;
     rep.voxelsWritten = topo->activeVoxelCount();
     rep.shellVoxels = lt.shellVoxels;
     rep.shellDropped = lt.shellDropped;
@@ -178,51 +230,23 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
                                "have no solved S (solve block too small) and are left inactive: the volume's edge "
                                "renders dark there");
 
-    prepareHeapForSmallBlocks(outputTreeBytes(*topo, b));
-
+    // The SH grids first; then the SH values (the solver's rows) are freed before the
+    // other grids are built, so the write holds one copy of the SH at a time.
+    prepareHeapForSmallBlocks(outputTreeBytes(*topo, size_t(b.coeffs), 0));
     openvdb::GridPtrVec grids;
-    std::vector<openvdb::Vec3SGrid::Ptr> sh;
-    if (b.sh)
-        sh = fillGrids(*topo, b, b.coeffs, [&](size_t i, int k) {
-            const float* p = b.sh + (i * size_t(b.coeffs) + size_t(k)) * 3;
-            return openvdb::Vec3s(p[0], p[1], p[2]);
-        });
-    else
-        for (int k = 0; k < b.coeffs; ++k) sh.push_back(topo->deepCopy());
-    for (int k = 0; k < b.coeffs; ++k) {
-        const openvdb::Vec3SGrid::Ptr& g = sh[size_t(k)];
-        g->setName("sh_" + std::to_string(k));
-        g->setGridClass(openvdb::GRID_UNKNOWN);    // order >= 1 terms go negative: not a fog volume
-        g->setVectorType(openvdb::VEC_INVARIANT);  // colour, not a vector: DCCs must not rotate it
-        const int l = shBand(k);
-        g->insertMeta("lpm:sh_index", openvdb::Int32Metadata(k));
-        g->insertMeta("lpm:sh_l", openvdb::Int32Metadata(l));
-        g->insertMeta("lpm:sh_m", openvdb::Int32Metadata(k - l * l - l));
+    const std::vector<openvdb::Vec3SGrid::Ptr> sh = shGrids(*topo, b);
+    for (const openvdb::Vec3SGrid::Ptr& g : sh) {
         if (o.half) rep.maxAbsValue = std::max(rep.maxAbsValue, maxAbs(*g));  // for its warning only
         grids.push_back(g);
     }
-    openvdb::Vec3SGrid::Ptr scatterGrid, emissionGrid;
-    {
-        openvdb::Vec3SGrid::Ptr s;
-        if (b.scatter)
-            s = fillGrid(*topo, b, [&](size_t i) {
-                const float* p = b.scatter + i * 3;
-                return openvdb::Vec3s(p[0], p[1], p[2]);
-            });
-        else if (b.sh)
-            s = fillGrid(*topo, b, [&](size_t i) {
-                const float* p = b.sh + i * b.coeffs * 3;
-                const float y = float(kY00);
-                return openvdb::Vec3s(p[0] * y, p[1] * y, p[2] * y);
-            });
-        else s = topo->deepCopy();
-        s->setName("scatter");
-        s->setGridClass(openvdb::GRID_FOG_VOLUME);
-        s->setVectorType(openvdb::VEC_INVARIANT);
-        s->insertMeta("lpm:description", openvdb::StringMetadata("direction-averaged S = sh_0 * 0.282095"));
-        grids.push_back(s);
-        scatterGrid = s;
+    if (b.releaseSh) {
+        std::vector<float>().swap(*b.releaseSh);  // its values are in the grids now
+        returnFreedHeapPages();
     }
+    prepareHeapForSmallBlocks(outputTreeBytes(*topo, b.emission ? 2 : 1, b.sunTransmittance.size()));
+    const openvdb::Vec3SGrid::Ptr scatterGrid = scatterGridOf(*topo, b, *sh.front());
+    grids.push_back(scatterGrid);
+    openvdb::Vec3SGrid::Ptr emissionGrid;
     for (size_t k = 0; k < b.sunTransmittance.size(); ++k) {
         const float* tr = b.sunTransmittance[k];
         openvdb::FloatGrid::Ptr t = fillGrid<openvdb::FloatGrid>(*topo, b, [&](size_t i) { return tr[i]; });
@@ -246,7 +270,8 @@ BakeWriteReport writeBake(const openvdb::FloatGrid& density, const DenseBake& b,
         emissionGrid = e;
     }
     if (o.writeDensity) {
-        openvdb::FloatGrid::Ptr d = density.deepCopy();
+        // Its tree shared, not copied (the write only reads it); name and class on the copy.
+        openvdb::FloatGrid::Ptr d = openvdb::ConstPtrCast<openvdb::FloatGrid>(density.copy());
         d->setName(o.densityName);
         d->setGridClass(openvdb::GRID_FOG_VOLUME);
         grids.push_back(d);

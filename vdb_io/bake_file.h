@@ -40,8 +40,14 @@ struct DenseBake {
     double M[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
     double t[3] = {0, 0, 0};
     int nx = 0, ny = 0, nz = 0;
-    int coeffs = 1;                 ///< SH coefficients per voxel
-    const float* sh = nullptr;      ///< [voxel][coeff][rgb], x fastest; null for an empty bake
+    int coeffs = 1;             ///< SH coefficients per voxel
+    const float* sh = nullptr;  ///< [row][coeff][rgb], x fastest; null for an empty bake
+    /// Dense voxel v's row of sh (core/sh_rows.h: ShRows::kNone where none is held, S = 0);
+    /// null: row = voxel.
+    const std::uint32_t* shRow = nullptr;
+    /// When set, sh's storage: the writer frees it once the grids that read sh are built,
+    /// so the file is written without it.
+    std::vector<float>* releaseSh = nullptr;
     const RGB* emission = nullptr;  ///< per dense voxel, or null
     /// Direction-averaged S per dense voxel [voxel][rgb] (the sun terms' share included);
     /// null: sh_0 * Y00.
@@ -50,6 +56,11 @@ struct DenseBake {
     std::vector<const float*> sunTransmittance;
     /// Storage layout of `sh`/`emission` (sparse 8^3 tiles); null = dense, x fastest.
     const Medium* layout = nullptr;
+    /// Dense voxel v's SH row (coeffs x RGB), null where none is held.
+    const float* shAt(size_t v) const {
+        if (!shRow) return sh + v * size_t(coeffs) * 3;
+        return shRow[v] == ~std::uint32_t(0) ? nullptr : sh + size_t(shRow[v]) * size_t(coeffs) * 3;
+    }
     size_t index(int x, int y, int z) const {
         if (layout) return layout->index(x, y, z);
         return size_t(x) + size_t(nx) * (size_t(y) + size_t(ny) * z);

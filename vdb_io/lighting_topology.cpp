@@ -54,7 +54,7 @@ bool hasSolvedValue(const DenseBake& b, const openvdb::Coord& c) {
 
 LightingTopology lightingTopology(const openvdb::FloatGrid& density, const DenseBake& b) {
     LightingTopology t;
-    t.grid = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
+    t.grid = openvdb::MaskGrid::create(false);
     t.grid->setTransform(density.transform().copy());
     t.grid->tree().topologyUnion(density.tree());
     t.grid->tree().voxelizeActiveTiles();
@@ -64,17 +64,16 @@ LightingTopology lightingTopology(const openvdb::FloatGrid& density, const Dense
     // Keep a shell voxel only where the solver computed S (never extrapolate); the
     // density's own voxels stay whatever happens.
     std::atomic<std::uint64_t> dropped{0};
-    openvdb::tree::LeafManager<openvdb::Vec3STree> leaves(t.grid->tree());
-    leaves.foreach ([&](openvdb::Vec3STree::LeafNodeType& leaf, size_t) {
+    openvdb::tree::LeafManager<openvdb::MaskTree> leaves(t.grid->tree());
+    leaves.foreach ([&](openvdb::MaskTree::LeafNodeType& leaf, size_t) {
         auto acc = density.getConstAccessor();  // accessors are not thread-safe: one per leaf
-        std::uint64_t off = 0;
-        for (auto it = leaf.beginValueOn(); it; ++it) {
-            const openvdb::Coord c = it.getCoord();
-            if (acc.isValueOn(c) || hasSolvedValue(b, c)) continue;
-            it.setValueOff();
-            ++off;
+        std::vector<openvdb::Index> off;        // (a mask leaf's value iterator cannot switch voxels off)
+        for (auto it = leaf.getValueMask().beginOn(); it; ++it) {
+            const openvdb::Coord c = leaf.offsetToGlobalCoord(it.pos());
+            if (!acc.isValueOn(c) && !hasSolvedValue(b, c)) off.push_back(it.pos());
         }
-        dropped += off;
+        for (openvdb::Index n : off) leaf.setValueOff(n);
+        dropped += off.size();
     });
     openvdb::tools::pruneInactive(t.grid->tree());
     t.shellDropped = dropped;

@@ -28,7 +28,9 @@ struct DenseBake;
 constexpr int kLightingShell = 1;
 
 struct LightingTopology {
-    openvdb::Vec3SGrid::Ptr grid;    ///< zero-valued Vec3f grid on the density's transform, voxelised
+    /// The active voxels (voxelised) on the density's transform: a mask, whose leaves hold
+    /// bits only (a Vec3f grid's hold a 6 KiB value buffer each: 19 MiB on the 1M plume).
+    openvdb::MaskGrid::Ptr grid;
     std::uint64_t shellVoxels = 0;   ///< active voxels added around the density's
     std::uint64_t shellDropped = 0;  ///< shell voxels left inactive: the solver has no S there
 };

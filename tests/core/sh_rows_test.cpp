@@ -102,6 +102,39 @@ TEST(ShRows, SolveWithWantedVoxelsEqualsTheFullSolveThere) {
     }
 }
 
+// With keepShRows the solve hands back the held rows and their map: read through the map
+// (coeff) and expanded (expandSh), they are the by-voxel result bit for bit.
+TEST(ShRows, KeptRowsAreTheResultByVoxel) {
+    Case cs{"plume g0.5 a0.95", VolumeKind::Plume, 0.5, 0.95, 8.0};
+    Scene sc = makeScene(cs, 16);
+    sc.lights.env = &sc.sky;
+    sc.medium.wantedS = someVoxels(sc.medium.voxelCount(), 13);
+    LpmSettings byVoxel, kept;
+    kept.keepShRows = true;
+    const LpmResult rv = solveLpm(sc.medium, sc.lights, byVoxel);
+    LpmResult rk = solveLpm(sc.medium, sc.lights, kept);
+    ASSERT_EQ(rv.coeffs, 9);
+    EXPECT_TRUE(rv.shRow.empty());
+    ASSERT_EQ(rk.shRow.size(), sc.medium.voxelCount());
+    size_t wanted = 0;
+    for (auto f : sc.medium.wantedS) wanted += f;
+    ASSERT_EQ(rk.sh.size(), wanted * 27) << "rows for the wanted voxels only";
+    size_t mismatched = 0;
+    for (size_t v = 0; v < sc.medium.voxelCount(); ++v) {
+        EXPECT_EQ(rk.shAt(v) == nullptr, sc.medium.wantedS[v] == 0) << "voxel " << v;
+        for (int k = 0; k < 9; ++k) {
+            const RGB a = rk.coeff(v, k), b = rv.coeff(v, k);
+            mismatched += a.r != b.r || a.g != b.g || a.b != b.b;
+        }
+    }
+    EXPECT_EQ(mismatched, 0u);
+    rk.expandSh();
+    EXPECT_TRUE(rk.shRow.empty());
+    EXPECT_EQ(rk.sh, rv.sh);
+    rk.expandSh();  // already by voxel: nothing
+    EXPECT_EQ(rk.sh, rv.sh);
+}
+
 TEST(ShRows, WantedFlagsOfAnotherSizeAreRefused) {
     Medium m = smallBox(4);
     m.wantedS.assign(7, 1);

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "core/sh.h"
+#include "core/sh_rows.h"
 #include "test_helpers.h"
 #include "vdb_io/io_error.h"
 
@@ -121,6 +122,52 @@ TEST(BakeFile, LayoutTopologyAndValues) {
     lpmtest::expectLightingTopology(*b.scatter, *f.density);
     EXPECT_EQ(b.meta->metaValue<std::string>("lpm:density_grid"), "density");
     EXPECT_EQ(b.shOrder, 2);
+}
+
+// The writer reads SH through a row map (DenseBake::shRow: the solver's rows for the
+// written voxels) and frees the rows it was handed (releaseSh) once its grids hold them:
+// the file is the one written from the same values by voxel.
+TEST(BakeFile, ShRowsWriteTheGridsOfTheValuesByVoxel) {
+    const std::string dir = lpmtest::scratchDir();
+    const int coeffs = 4;
+    Fixture byVoxel = makeFixture(coeffs);
+    const size_t voxels = byVoxel.sh.size() / (coeffs * 3), width = coeffs * 3;
+    // Rows in reverse voxel order; every third voxel without one (S = 0 there).
+    std::vector<std::uint32_t> rowOf(voxels, ShRows::kNone);
+    std::vector<float> rows;
+    for (size_t v = voxels; v-- > 0;) {
+        if (v % 3 == 0) continue;
+        rowOf[v] = std::uint32_t(rows.size() / width);
+        rows.insert(rows.end(), byVoxel.sh.begin() + long(v * width), byVoxel.sh.begin() + long((v + 1) * width));
+    }
+    for (size_t v = 0; v < voxels; v += 3) std::fill_n(byVoxel.sh.begin() + long(v * width), width, 0.0f);
+    Fixture byRow = makeFixture(coeffs);
+    byRow.bake.sh = rows.data();
+    byRow.bake.shRow = rowOf.data();
+    byRow.bake.releaseSh = &rows;
+    const openvdb::MetaMap meta = shaderMetadata(1);
+    BakeWriteOptions o;
+    o.path = dir + "/by_voxel.vdb";
+    writeBake(*byVoxel.density, byVoxel.bake, meta, o);
+    o.path = dir + "/by_row.vdb";
+    writeBake(*byRow.density, byRow.bake, meta, o);
+    EXPECT_TRUE(rows.empty() && rows.capacity() == 0) << "the rows are freed";
+
+    const BakeFile a = readBakeFile(dir + "/by_voxel.vdb"), b = readBakeFile(dir + "/by_row.vdb");
+    ASSERT_EQ(a.sh.size(), size_t(coeffs));
+    ASSERT_EQ(b.sh.size(), size_t(coeffs));
+    size_t zeros = 0;
+    for (int k = 0; k < coeffs; ++k) {
+        ASSERT_TRUE(a.sh[k]->tree().hasSameTopology(b.sh[k]->tree()));
+        for (auto it = a.sh[k]->cbeginValueOn(); it; ++it) {
+            ASSERT_EQ(*it, b.sh[k]->tree().getValue(it.getCoord())) << "sh_" << k << " at " << it.getCoord();
+            zeros += *it == openvdb::Vec3s(0.0f);
+        }
+    }
+    EXPECT_GT(zeros, 0u) << "voxels without a row are written as 0";
+    ASSERT_TRUE(a.scatter && b.scatter);
+    for (auto it = a.scatter->cbeginValueOn(); it; ++it)
+        ASSERT_EQ(*it, b.scatter->tree().getValue(it.getCoord())) << "scatter at " << it.getCoord();
 }
 
 TEST(BakeFile, HalfStorageWarnsAboveHalfMax) {
