@@ -43,10 +43,4 @@ HalfBuffer HalfBuffer::encode(const std::vector<float>& x) {
     return out;
 }
 
-void HalfBuffer::negate() {
-    parallelForChunks(bits.size(), 1 << 16, [&](std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i) bits[i] = std::uint16_t(bits[i] ^ 0x8000u);
-    });
-}
-
 }  // namespace lpm

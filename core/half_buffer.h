@@ -3,7 +3,7 @@
 // 2^-11 of the float relative to it (4.9e-4) wherever it is at least 2^-14 x scale
 // (6.1e-5 x scale); the scale maps the buffer's largest finite magnitude into [2^14, 2^15),
 // so nothing overflows and everything below 2^-29 of the largest value is stored with an
-// absolute error of at most 2^-25 scale. Negation is exact.
+// absolute error of at most 2^-25 scale.
 //
 // Used for the two-grid cycle's coarse tail (docs/multires.md, "The tail in half
 // precision"), where the rounded tail is both added to E and taken from r', so the
@@ -78,8 +78,6 @@ struct HalfBuffer {
     static float scaleFor(float largest);
     float at(std::size_t i) const { return floatFromHalf(bits[i]) * scale; }
     std::size_t size() const { return bits.size(); }
-    /// -value for every element (the sign bit flipped: exact).
-    void negate();
 };
 
 }  // namespace lpm

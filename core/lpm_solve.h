@@ -57,8 +57,10 @@ private:
     void reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count, double rPower,
                        Clock::time_point start);
     /// One fine pass with separable sources: of the light jobs (src null) or of `src`; its
-    /// deposits fold into the SH result and sep_->next.
-    void runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs = nullptr);
+    /// deposits fold into the SH result and sep_->next, less `takeFromNext` (a coarse part
+    /// held as SeparableSource::offset; SeparableFold::finish) when given.
+    void runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs = nullptr,
+                          const HalfBuffer* takeFromNext = nullptr);
     // The GMRES continuation (core/krylov_pass.cpp).
     void finishWithGmres();
     HalfOperator basisOperator();

@@ -10,7 +10,8 @@ namespace lpm {
 
 LpmSolve::SeparableState::SeparableState(const Medium& fine) : coarse(coarsen(fine)), map(fine, coarse) {}
 
-void LpmSolve::runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs) {
+void LpmSolve::runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs,
+                                const HalfBuffer* takeFromNext) {
     constexpr size_t kBatch = 4;  // 4 deposit buffers of 12 B per voxel (8 in the full fold)
     std::vector<int> jobBin;
     std::vector<Job> binJobs;
@@ -31,7 +32,7 @@ void LpmSolve::runSeparablePass(const SeparableSource* src, Tally& t, const std:
     // The deposit buffers go before finish() rounds the shape to half precision, which holds
     // its float sum and the rounded copy at once: the fine pass's peak would be there.
     runner_->releaseBuffers();
-    sep_->next = fold.finish();
+    sep_->next = fold.finish(takeFromNext);
 }
 
 }  // namespace lpm

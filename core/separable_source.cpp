@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/error.h"
 #include "core/fold_kernel.h"
 #include "core/malloc_policy.h"
 #include "core/parallel.h"
@@ -317,16 +318,43 @@ void SeparableFold::fold(bool depositSh, const Job* jobs, size_t n, const std::v
 // normaliser are taken from the rounded values, so fillBin still gives every fine voxel its
 // angular integral m_f exactly: the rounding moves no power between voxels, it only changes
 // how a voxel's source divides among the bins, by at most 2^-11 of each bin's value.
-SeparableSource SeparableFold::finish() {
+void SeparableFold::takeIntegralFromChildren(const HalfBuffer& part) {
     const size_t nb = size_t(nb_);
+    std::vector<float> integral(map_.rows() * 3);  // |P_C| [row][rgb], signed
+    parallelForChunks(map_.rows(), 4096, [&](size_t cb, size_t ce) {
+        for (size_t ci = cb; ci < ce; ++ci)
+            for (size_t c = 0; c < 3; ++c) {
+                double sum = 0;
+                for (size_t d = 0; d < nb; ++d) sum += double(binWeight_[d]) * part.at(out_.heldIndex(ci, d, c));
+                integral[ci * 3 + c] = float(sum);
+            }
+    });
+    parallelForChunks(map_.parent.size(), 4096, [&](size_t fb, size_t fe) {
+        for (size_t f = fb; f < fe; ++f) {
+            const std::uint32_t p = map_.parent[f];
+            if (p == FineCoarseMap::kNone) continue;
+            for (size_t c = 0; c < 3; ++c) out_.magnitude[f * 3 + c] -= integral[size_t(p) * 3 + c];
+        }
+    });
+}
+
+SeparableSource SeparableFold::finish(const HalfBuffer* minus) {
+    const size_t nb = size_t(nb_);
+    out_.coarseRows = map_.rows();
+    if (minus && minus->size() != map_.rows() * nb * 3)
+        throw Error("SeparableFold", "the part to take holds " + std::to_string(minus->size()) + " values for " +
+                                         std::to_string(map_.rows()) + " rows of " + std::to_string(nb) + " bins");
     parallelForChunks(map_.sigmaSum.size(), 4096, [&](size_t cb, size_t ce) {
         for (size_t ci = cb; ci < ce; ++ci) {
             const float s = map_.sigmaSum[ci];
             float* r = &shapeSum_[ci * nb * 3];
             for (size_t i = 0; i < nb * 3; ++i) r[i] = s > 0 ? r[i] / s : 0.0f;
+            if (minus)
+                for (size_t d = 0; d < nb; ++d)
+                    for (size_t c = 0; c < 3; ++c) r[d * 3 + c] -= minus->at(out_.heldIndex(ci, d, c));
         }
     });
-    out_.coarseRows = map_.rows();
+    if (minus) takeIntegralFromChildren(*minus);
     out_.shape = SeparableSource::holdByBin(shapeSum_, nb_);
     shapeSum_ = std::vector<float>();
     assignZeroed(out_.norm, map_.sigmaSum.size() * 3);

@@ -10,8 +10,8 @@
 // R_C = 0): where R_C has one sign in every bin this is m_f R_C(d) / |R_C|, and it stays
 // linear in m_f where it has not (the two-grid cycle's residuals change sign; a division
 // by |R_C| there lost their sources and stalled the cycle at albedo 0.99).
-// P_C is a piecewise-constant part (the two-grid cycle's coarse tails), held as the sum of
-// at most two half-precision buffers (core/half_buffer.h). R_C is held in half precision
+// P_C is a piecewise-constant part (the two-grid cycle's coarse tail), held as a
+// half-precision buffer (core/half_buffer.h). R_C is held in half precision
 // too, |R_C| and S_C taken from the rounded values. Exact: every fine voxel's angular
 // integral. To within R_C's rounding (2^-11): the sigma-weighted restriction (so the
 // source power of every coarse voxel in every bin). Approximate: how the angular shape
@@ -93,9 +93,17 @@ public:
     void fold(bool depositSh, const Job* jobs, size_t n, const std::vector<std::vector<float>>& phi,
               std::vector<float>& sh);
     /// The folded source (R_C normalised by the children's sigma sums). Leaves the fold empty.
-    SeparableSource finish();
+    /// With `minus` (P_C [bin][row][rgb], held as SeparableSource::offset): the folded source
+    /// less that piecewise-constant part, taken from R_C before it is rounded and its
+    /// angular integral |P_C| from every child's m_f, so the result holds no offset (the
+    /// restriction and every fine voxel's integral stay exact; the shape of m_f - |R_C|
+    /// becomes that of R_C - P_C).
+    SeparableSource finish(const HalfBuffer* minus = nullptr);
 
 private:
+    /// m_f -= |part| of f's parent ([bin][row][rgb] held by bin), for every fine voxel.
+    void takeIntegralFromChildren(const HalfBuffer& part);
+
     const FineCoarseMap& map_;
     const std::vector<float>& sigmaT_;
     std::vector<float> binWeight_;

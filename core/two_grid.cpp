@@ -137,8 +137,8 @@ void LpmSolve::continueOnCoarse(int firstPass) {
 }
 
 // The same cycle with separable fine sources (core/separable_source.h): r, E and K E are
-// held separably, so no fine buffer of bins is ever allocated; the tail is a part of the
-// separable form's coarse offset (r's offset is the previous tail, negated).
+// held separably, so no fine buffer of bins is ever allocated; the tail is E's coarse
+// offset, and r' = K E - tail takes it from K E's coarse shape (r never holds an offset).
 void LpmSolve::continueOnCoarseSeparable(int firstPass) {
     constexpr int kCycles = 3;
     const auto tp = Clock::now();
@@ -160,12 +160,11 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
             coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count, &sep_->map.coarseRows), r.bins));
         const auto tf = Clock::now();
         Tally t;
-        runSeparablePass(&r, t);
+        // r' = K E - tail, the tail taken from K E's coarse shape as the fold finishes, so
+        // r' holds no offset and E never more than its tail (SeparableFold::finish).
+        runSeparablePass(&r, t, nullptr, &r.offset.back());
         recordPass(p++, t, tf);
-        HalfBuffer tail = std::move(r.offset.back());
-        r = std::move(sep_->next);  // K E (no offset)
-        tail.negate();
-        r.offset.push_back(std::move(tail));  // r' = K E - tail
+        r = std::move(sep_->next);
         rPower = r.power(sep_->map, sep_->binWeight, m_.albedo, V_);
         res_.passes.back().scattered = std::fabs(rPower);
         if (std::fabs(rPower) <= s_.tolerance * res_.injected) {

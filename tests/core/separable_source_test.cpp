@@ -93,7 +93,7 @@ struct FoldInput {
 };
 
 SeparableSource foldSeparably(const Medium& f, const FineCoarseMap& map, const FoldInput& in, std::vector<float>& sh,
-                              size_t batch) {
+                              size_t batch, const HalfBuffer* minus = nullptr) {
     SeparableFold fold(map, f.sigmaT, in.binWeight, in.coeffs);
     sh.assign(f.voxelCount() * in.coeffs * 3, 0.0f);
     for (size_t b0 = 0; b0 < in.jobs.size(); b0 += batch) {
@@ -101,7 +101,7 @@ SeparableSource foldSeparably(const Medium& f, const FineCoarseMap& map, const F
         std::vector<std::vector<float>> phi(in.phi.begin() + long(b0), in.phi.begin() + long(b0 + n));
         fold.fold(true, &in.jobs[b0], n, phi, sh);
     }
-    return fold.finish();
+    return fold.finish(minus);
 }
 
 // The separable fold of `in` in batches of 3, 4 and 7 jobs against the full fold's SH,
@@ -197,6 +197,58 @@ TEST(SeparableSource, FoldKeepsTheFullFoldsIntegralsAndRestriction) {
         const std::vector<float> restrictedFull = restrictSource(f, c, U, in.bins, 1);
         expectFoldsMatch(f, map, in, U, shFull, restrictedFull);
     }
+}
+
+// finish(&P) takes a coarse part P from the folded source as it forms it (the two-grid
+// cycle's r' = K E - tail): the restriction is the plain fold's less P (to within R_C's
+// rounding), every fine voxel's angular integral its m_f less P's, no offset is left, and
+// the power is that of the plain fold holding -P as its offset.
+TEST(SeparableSource, FinishTakesAPartFromTheRestrictionAndEveryIntegral) {
+    const Medium f = blockWithEmptySlab(9);
+    const Medium c = coarsen(f);
+    const FineCoarseMap map(f, c);
+    const FoldInput in(f, 6, 4);
+    Pcg32 rng(10, 4);
+    std::vector<float> part(map.rows() * in.bins * 3), negated(part.size());
+    for (size_t i = 0; i < part.size(); ++i) {
+        part[i] = 0.8f * (float(rng.uniform()) - 0.4f);
+        negated[i] = -part[i];
+    }
+    const HalfBuffer partHeld = SeparableSource::holdByBin(part, in.bins);
+    std::vector<float> sh;
+    SeparableSource plain = foldSeparably(f, map, in, sh, 4);
+    const SeparableSource taken = foldSeparably(f, map, in, sh, 4, &partHeld);
+    EXPECT_TRUE(taken.offset.empty());
+    const std::vector<float> rPlain = plain.restricted(), rTaken = taken.restricted();
+    ASSERT_EQ(rPlain.size(), rTaken.size());
+    std::vector<double> partIntegral(map.rows() * 3, 0.0);
+    for (size_t p = 0; p < map.rows(); ++p)
+        for (int d = 0; d < in.bins; ++d)
+            for (int ch = 0; ch < 3; ++ch) {
+                const size_t i = (p * size_t(in.bins) + size_t(d)) * 3 + size_t(ch);
+                const float held = partHeld.at(plain.heldIndex(p, size_t(d), size_t(ch)));
+                partIntegral[p * 3 + size_t(ch)] += in.binWeight[size_t(d)] * held;
+                const float want = rPlain[i] - held;
+                ASSERT_NEAR(rTaken[i], want, std::ldexp(1.0f, -10) * (std::fabs(rPlain[i]) + std::fabs(held)) + 1e-6f)
+                    << "row " << p << " bin " << d;
+            }
+    size_t under = 0;
+    for (size_t v = 0; v < f.voxelCount(); ++v)
+        for (int ch = 0; ch < 3; ++ch) {
+            const std::uint32_t p = map.parent[v];
+            const double want =
+                plain.magnitude[v * 3 + ch] - (p == FineCoarseMap::kNone ? 0.0 : partIntegral[p * 3 + ch]);
+            ASSERT_NEAR(taken.magnitude[v * 3 + ch], want, 1e-5 * (1 + std::fabs(want))) << "voxel " << v;
+            under += p != FineCoarseMap::kNone && ch == 0;
+        }
+    EXPECT_GT(under, f.voxelCount() / 4);
+    plain.offset.push_back(SeparableSource::holdByBin(negated, in.bins));
+    const RGB albedo(0.9f, 0.8f, 0.7f);
+    const double want = plain.power(map, in.binWeight, albedo, f.voxelVolume());
+    EXPECT_NEAR(taken.power(map, in.binWeight, albedo, f.voxelVolume()), want, std::ldexp(1.0, -10) * std::fabs(want));
+    SeparableFold wrong(map, f.sigmaT, in.binWeight, in.coeffs);
+    const HalfBuffer short_ = SeparableSource::holdByBin(std::vector<float>(in.bins * 3, 1.0f), in.bins);
+    EXPECT_THROW(wrong.finish(&short_), Error);
 }
 
 // Reconstruction: every fine voxel's angular integral is its magnitude, exactly, though
