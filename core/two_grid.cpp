@@ -32,13 +32,16 @@ LpmSettings coarseSettings(const LpmSettings& s, const SolvePlan& plan, const st
     cs.binsPerFace = plan.binsPerFace;
     cs.raysPerVoxel = cs.raysHigherOrders = plan.raysHigher;
     cs.krylovAfter = std::min(s.krylovAfter, s.coarseKrylovAfter);
-    // Its Krylov vectors (half precision): 64 B per fine stored voxel (issue 9's budget is
+    // Its Krylov vectors (half precision): 40 B per fine stored voxel (issue 9's budget is
     // 300 B per active voxel). With one unshot bin that is 40 vectors, with 24 bins (144 B
-    // per coarse voxel) the floor of 3: the 1M-voxel cumulus at g = 0.6, albedo 0.99
-    // peaked at 2839 MiB with 29 float vectors (the former flat 2 GiB) and at 1315 MiB with
-    // 4, in 39 s against 41 s; with 3 half vectors (session 22) at 747 MiB against 783 MiB
-    // with 4, in 60 coarse passes against 63 (2: 713 MiB, 105 passes).
-    cs.krylovBytes = std::min(s.krylovBytes, 64.0 * double(fineStoredVoxels));
+    // per coarse row with mass, about half the coarse voxels) 3: the 1M-voxel cumulus at
+    // g = 0.6, albedo 0.99 peaked at 2839 MiB with 29 float vectors (the former flat 2 GiB)
+    // and at 1315 MiB with 4, in 39 s against 41 s; with 3 half vectors (session 22) at
+    // 747 MiB against 783 MiB with 4, in 60 coarse passes against 63 (2: 713 MiB, 105
+    // passes). Session 27's rows halved the vectors, and the former 64 B gave 5: 551-566
+    // MiB in 52 GMRES passes, against 520 MiB in 63 with 3 (session 28; the bake 2-5%
+    // slower, its peak now the fine passes').
+    cs.krylovBytes = std::min(s.krylovBytes, 40.0 * double(fineStoredVoxels));
     cs.directionsPerFace = plan.coarseDirectionsPerFace;
     cs.sunTerms = false;
     cs.validate();
