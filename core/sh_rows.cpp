@@ -36,11 +36,11 @@ void ShRows::expand(std::vector<float>& sh, int coeffs) const {
 void expandShRows(std::vector<float>& sh, const std::vector<std::uint32_t>& row, int coeffs) {
     if (row.empty()) return;
     const size_t width = size_t(coeffs) * 3, voxels = row.size();
-    std::uint32_t last = 0;  // the largest row held
+    size_t held = 0;  // one more than the largest row held
     for (std::uint32_t r : row)
-        if (r != ShRows::kNone) last = std::max(last, r);
-    if ((size_t(last) + 1) * width > sh.size())
-        throw Error("ShRows", "row " + std::to_string(last) + " is beyond the SH result's " +
+        if (r != ShRows::kNone) held = std::max(held, size_t(r) + 1);
+    if (held * width > sh.size())
+        throw Error("ShRows", "row " + std::to_string(held - 1) + " is beyond the SH result's " +
                                   std::to_string(sh.size() / width) + " rows");
     // Into new storage, faulted in and filled by all the threads (in place, from the last
     // row down, one thread would fault 2 MiB pages in for 0.1-0.2 s on the 1M plume); the

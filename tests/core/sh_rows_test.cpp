@@ -63,6 +63,11 @@ TEST(ShRows, ExpandPutsEachRowAtItsVoxelAndZerosElsewhere) {
         }
     std::vector<float> wrongSize(3);
     EXPECT_THROW(rows.expand(wrongSize, 4), Error);
+    // Handed-over maps: a row beyond the result is refused; no row held expands to zeros.
+    std::vector<float> twoRows(2 * width, 1.0f), none;
+    EXPECT_THROW(expandShRows(twoRows, {0, ShRows::kNone, 2}, 4), Error);
+    expandShRows(none, std::vector<std::uint32_t>(5, ShRows::kNone), 4);
+    EXPECT_EQ(none, std::vector<float>(5 * width, 0.0f));
 }
 
 // A solve that keeps SH rows only for the wanted voxels returns, there, exactly the full
