@@ -13,6 +13,7 @@
 // trilinear footprint (vdb_io/lighting_topology.h). File metadata keys start with "lpm:".
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,7 @@
 
 #include "core/math.h"
 #include "core/medium.h"
+#include "core/sh_rows.h"
 
 namespace lpm {
 
@@ -59,7 +61,7 @@ struct DenseBake {
     /// Dense voxel v's SH row (coeffs x RGB), null where none is held.
     const float* shAt(size_t v) const {
         if (!shRow) return sh + v * size_t(coeffs) * 3;
-        return shRow[v] == ~std::uint32_t(0) ? nullptr : sh + size_t(shRow[v]) * size_t(coeffs) * 3;
+        return shRow[v] == ShRows::kNone ? nullptr : sh + size_t(shRow[v]) * size_t(coeffs) * 3;
     }
     size_t index(int x, int y, int z) const {
         if (layout) return layout->index(x, y, z);
