@@ -39,8 +39,8 @@ LpmSettings coarseSettings(const LpmSettings& s, const SolvePlan& plan, const st
     // and at 1315 MiB with 4, in 39 s against 41 s; with 3 half vectors (session 22) at
     // 747 MiB against 783 MiB with 4, in 60 coarse passes against 63 (2: 713 MiB, 105
     // passes). Session 27's rows halved the vectors, and the former 64 B gave 5: 551-566
-    // MiB in 52 GMRES passes, against 520 MiB in 63 with 3 (session 28; the bake 2-5%
-    // slower, its peak now the fine passes').
+    // MiB in 52 GMRES passes, against 520 MiB in 63 with 3 (session 28; the bake's solve
+    // 1.05-1.25x as long in 5 interleaved pairs, its peak now the fine passes').
     cs.krylovBytes = std::min(s.krylovBytes, 40.0 * double(fineStoredVoxels));
     cs.directionsPerFace = plan.coarseDirectionsPerFace;
     cs.sunTerms = false;
