@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 #include "core/fold_kernel.h"
 #include "core/malloc_policy.h"
@@ -117,17 +118,30 @@ PassRunner::PassRunner(const Medium& m, FoldShape shape, const std::vector<std::
         throw Error("PassRunner", "rows of the next source are for voxel-constant sources of several bins");
 }
 
-void PassRunner::releaseBuffers() const { buffers_ = std::vector<std::vector<float>>(); }
+void PassRunner::releaseBuffers() const {
+    buffers_ = std::vector<std::vector<float>>();
+    bf16Buffers_ = std::vector<std::vector<Bf16>>();
+}
+
+template <class T>
+std::vector<std::vector<T>>& PassRunner::buffersOf() const {
+    if constexpr (std::is_same_v<T, float>) return buffers_;
+    else return bf16Buffers_;
+}
 
 std::vector<float>& PassRunner::zeroedBuffer(size_t i, size_t len) const { return assignZeroed(buffers_[i], len); }
 
-std::vector<float>& PassRunner::depositBuffer(size_t i, size_t len) const {
-    return buffers_[i].size() == len ? buffers_[i] : assignZeroed(buffers_[i], len);
+template <class T>
+std::vector<T>& PassRunner::depositBuffer(size_t i, size_t len) const {
+    std::vector<T>& b = buffersOf<T>()[i];
+    return b.size() == len ? b : assignZeroed(b, len);
 }
 
+template <class T>
 void PassRunner::reserveBuffers(size_t count, size_t len) const {
-    if (buffers_.size() < count) buffers_.resize(count);
-    for (size_t i = 0; i < count; ++i) reserveOnHugePages(buffers_[i], len);
+    std::vector<std::vector<T>>& buffers = buffersOf<T>();
+    if (buffers.size() < count) buffers.resize(count);
+    for (size_t i = 0; i < count; ++i) reserveOnHugePages(buffers[i], len);
 }
 
 void PassRunner::run(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const {
@@ -168,11 +182,25 @@ std::vector<std::pair<size_t, size_t>> sweepGroups(const Job* jobs, size_t n, in
 
 void PassRunner::sweepInBatches(const std::vector<Job>& jobs, const std::vector<size_t>& starts, int r, Tally& total,
                                 const std::function<void(size_t)>& before, const BatchFold& fold) const {
+    sweepBatchesInto(jobs, starts, r, total, before, fold);
+}
+
+void PassRunner::sweepInBatchesBf16(const std::vector<Job>& jobs, const std::vector<size_t>& starts, int r,
+                                    Tally& total, const std::function<void(size_t)>& before,
+                                    const BatchFoldOf<Bf16>& fold) const {
+    if (shape_.moments != 1) throw Error("PassRunner", "bfloat16 deposits are for voxel-constant sources");
+    sweepBatchesInto(jobs, starts, r, total, before, fold);
+}
+
+template <class T>
+void PassRunner::sweepBatchesInto(const std::vector<Job>& jobs, const std::vector<size_t>& starts, int r,
+                                  Tally& total, const std::function<void(size_t)>& before,
+                                  const BatchFoldOf<T>& fold) const {
     const size_t N = m_.voxelCount();
     const int M = shape_.moments;
     for (size_t b = 0; b < starts.size(); ++b) {
         const size_t b0 = starts[b], nbatch = (b + 1 < starts.size() ? starts[b + 1] : jobs.size()) - b0;
-        reserveBuffers(nbatch, N * 3 * size_t(M));
+        reserveBuffers<T>(nbatch, N * 3 * size_t(M));
         if (before) before(b);
         std::vector<Tally> tallies(nbatch);
         // Jobs that sweep the same planes go as groups (sweepStepGroup), each job's deposits
@@ -185,15 +213,16 @@ void PassRunner::sweepInBatches(const std::vector<Job>& jobs, const std::vector<
         parallelForChunks(groups.size(), 1, [&](size_t gb, size_t ge) {
             for (size_t g = gb; g < ge; ++g) {
                 const auto [j0, j1] = groups[g];
-                if (M == 4) {
-                    sweepReference<true>(m_, jobs[b0 + j0], r, zeroedBuffer(j0, N * 3 * M).data(), tallies[j0]);
-                    continue;
-                }
+                if constexpr (std::is_same_v<T, float>)
+                    if (M == 4) {
+                        sweepReference<true>(m_, jobs[b0 + j0], r, zeroedBuffer(j0, N * 3 * M).data(), tallies[j0]);
+                        continue;
+                    }
                 std::vector<const Job*> group;
-                std::vector<float*> phi;
+                std::vector<T*> phi;
                 for (size_t j = j0; j < j1; ++j) {
                     group.push_back(&jobs[b0 + j]);
-                    phi.push_back(depositBuffer(j, N * 3).data());
+                    phi.push_back(depositBuffer<T>(j, N * 3).data());
                 }
                 std::vector<Tally> groupTallies(group.size());
                 sweepStepGroup(m_, group, r, phi, groupTallies);
@@ -201,7 +230,7 @@ void PassRunner::sweepInBatches(const std::vector<Job>& jobs, const std::vector<
             }
         });
         for (size_t j = 0; j < nbatch; ++j) total.add(tallies[j]);
-        fold(&jobs[b0], nbatch, buffers_);
+        fold(&jobs[b0], nbatch, buffersOf<T>());
     }
 }
 

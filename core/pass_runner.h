@@ -51,14 +51,26 @@ public:
     void releaseBuffers() const;
 
     /// Folds one batch's deposits phi[j] ([voxel][moment][rgb]) of jobs[0..n).
-    using BatchFold = std::function<void(const Job* jobs, size_t n, const std::vector<std::vector<float>>& phi)>;
+    template <class T>
+    using BatchFoldOf = std::function<void(const Job* jobs, size_t n, const std::vector<std::vector<T>>& phi)>;
+    using BatchFold = BatchFoldOf<float>;
     /// Sweeps `jobs` in batches (batch b: jobs [starts[b], starts[b + 1]), the last to the
     /// end), one deposit buffer per job, in parallel; then `fold` takes the batch. `before(b)`
     /// (may be empty) runs before batch b is swept. Adds the tallies to `total`.
     void sweepInBatches(const std::vector<Job>& jobs, const std::vector<size_t>& starts, int r, Tally& total,
                         const std::function<void(size_t)>& before, const BatchFold& fold) const;
+    /// sweepInBatches with every deposit rounded to bfloat16 (core/bf16.h) as its sweep
+    /// stores it: half the deposit buffers' memory. Voxel-constant sources only (one moment).
+    void sweepInBatchesBf16(const std::vector<Job>& jobs, const std::vector<size_t>& starts, int r, Tally& total,
+                            const std::function<void(size_t)>& before, const BatchFoldOf<Bf16>& fold) const;
 
 private:
+    template <class T>
+    void sweepBatchesInto(const std::vector<Job>& jobs, const std::vector<size_t>& starts, int r, Tally& total,
+                          const std::function<void(size_t)>& before, const BatchFoldOf<T>& fold) const;
+    /// The deposit buffers of element T (float or Bf16).
+    template <class T>
+    std::vector<std::vector<T>>& buffersOf() const;
     /// Deposit buffer i (a batch's accumulator or a direction's deposit), `len` zeros. The
     /// buffers are kept from pass to pass: allocated and freed every pass, their pages
     /// were faulted in again each time (a fifth of a bake's time, docs/performance.md).
@@ -67,10 +79,12 @@ private:
     /// the block (sweepStepGroup, sweepStepBatch): zeroed only when it is (re)allocated, so
     /// the padding of edge tiles, which no sweep writes, stays 0 while the rest is left
     /// from the last batch (zeroing it for every batch: about 3% of a g = 0.6 bake's CPU).
-    std::vector<float>& depositBuffer(size_t i, size_t len) const;
+    template <class T = float>
+    std::vector<T>& depositBuffer(size_t i, size_t len) const;
     /// Room for `len` floats in the first `count` buffers, allocated by the calling thread
     /// before the parallel sweeps zero them: a block allocated on a worker would come from
     /// (and go back to) that thread's heap, where it stays resident when freed.
+    template <class T = float>
     void reserveBuffers(size_t count, size_t len) const;
 
     void runGeneral(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const;
@@ -83,6 +97,7 @@ private:
     const std::uint32_t* shRow_;
     const std::uint32_t* outRow_;
     mutable std::vector<std::vector<float>> buffers_;
+    mutable std::vector<std::vector<Bf16>> bf16Buffers_;
 };
 
 /// A batch's jobs jobs[0..n) as sweep groups [begin, end) (sweepStepGroup): runs of

@@ -12,7 +12,7 @@ LpmSolve::SeparableState::SeparableState(const Medium& fine) : coarse(coarsen(fi
 
 void LpmSolve::runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs,
                                 const HalfBuffer* takeFromNext) {
-    constexpr size_t kBatch = 4;  // 4 deposit buffers of 12 B per voxel (8 in the full fold)
+    constexpr size_t kBatch = 4;  // 4 deposit buffers of 12 B per voxel in pass 0, 6 B after (8 x 12 B in the full fold)
     std::vector<int> jobBin;
     std::vector<Job> binJobs;
     if (src) {
@@ -25,10 +25,17 @@ void LpmSolve::runSeparablePass(const SeparableSource* src, Tally& t, const std:
         if (starts.empty() || j - starts.back() >= kBatch || (src && jobBin[j] != jobBin[j - 1])) starts.push_back(j);
     SeparableFold fold(sep_->map, m_.sigmaT, sep_->binWeight, nc_, shRows_ ? shRows_->map() : nullptr);
     const auto fill = [&](size_t b) { src->fillBin(sep_->map, jobBin[starts[b]], sep_->binSource.data()); };
-    runner_->sweepInBatches(jobs, starts, r_, t, src ? std::function<void(size_t)>(fill) : nullptr,
-                            [&](const Job* js, size_t n, const std::vector<std::vector<float>>& phi) {
-                                fold.fold(true, js, n, phi, res_.sh);
-                            });
+    if (src)  // the scattering orders after pass 0: their deposits in bfloat16 (core/bf16.h)
+        runner_->sweepInBatchesBf16(jobs, starts, r_, t, fill,
+                                    [&](const Job* js, size_t n, const std::vector<std::vector<Bf16>>& phi) {
+                                        fold.fold(true, js, n, phi, res_.sh);
+                                    });
+    else  // pass 0 in float: the suns' single scattering is taken out of the SH by the value
+          // their own sweep deposits (core/sun_term.h), which a rounded deposit would not match
+        runner_->sweepInBatches(jobs, starts, r_, t, nullptr,
+                                [&](const Job* js, size_t n, const std::vector<std::vector<float>>& phi) {
+                                    fold.fold(true, js, n, phi, res_.sh);
+                                });
     // The deposit buffers go before finish() rounds the shape to half precision, which holds
     // its float sum and the rounded copy at once: the fine pass's peak would be there.
     runner_->releaseBuffers();

@@ -184,9 +184,13 @@ struct BatchCoefs {
 /// parent's psi_j. A fine voxel's bin row is never formed: the coarse voxel's restriction
 /// sum_f sigma_f U_f(d) is sum_j binCoef_j(d) psi_j (foldCoarseRange), one bin row per
 /// coarse voxel and job instead of one per fine voxel.
-LPM_SIMD_CLONES
-void foldFineRange(size_t vb, size_t ve, const BatchCoefs& k, const FineCoarseMap& map, const float* sigmaT,
-                   const std::vector<std::vector<float>>& phi, bool depositSh, float* sh, float* mag, float* psi) {
+inline float depositValue(float x) { return x; }
+inline float depositValue(Bf16 x) { return floatFromBf16(x); }
+
+template <class T>
+LPM_SIMD_CLONES void foldFineRange(size_t vb, size_t ve, const BatchCoefs& k, const FineCoarseMap& map,
+                                   const float* sigmaT, const std::vector<std::vector<T>>& phi, bool depositSh,
+                                   float* sh, float* mag, float* psi) {
     for (size_t f = vb; f < ve; ++f) {
         const std::uint32_t parent = map.parent[f];
         const size_t row = k.row(f);
@@ -196,7 +200,8 @@ void foldFineRange(size_t vb, size_t ve, const BatchCoefs& k, const FineCoarseMa
         float* m = &mag[f * 3];
         float* q = parent == FineCoarseMap::kNone ? nullptr : &psi[size_t(parent) * k.n * 3];
         for (size_t j = 0; j < k.n; ++j) {
-            const float* p = &phi[j][f * 3];
+            const T* pj = &phi[j][f * 3];
+            const float p[3] = {depositValue(pj[0]), depositValue(pj[1]), depositValue(pj[2])};
             if (p[0] == 0 && p[1] == 0 && p[2] == 0) continue;
             if (toSh) addTimesRgb(&sh[row * size_t(k.nc) * 3], &k.sh3[j * size_t(k.nc) * 3], RgbRepeat(p), k.nc);
             if (!q) continue;  // no mass under the parent: no source of power
@@ -238,10 +243,11 @@ __attribute__((always_inline)) inline void addBatchToRow4x9(float* row, const fl
     row[26] = t2;
 }
 
-LPM_SIMD_CLONES
-void foldFineRange4x9(size_t vb, size_t ve, const BatchCoefs& k, const FineCoarseMap& map, const float* sigmaT,
-                      const std::vector<std::vector<float>>& phi, float* sh, float* mag, float* psi) {
-    const float* const ph[4] = {phi[0].data(), phi[1].data(), phi[2].data(), phi[3].data()};
+template <class T>
+LPM_SIMD_CLONES void foldFineRange4x9(size_t vb, size_t ve, const BatchCoefs& k, const FineCoarseMap& map,
+                                      const float* sigmaT, const std::vector<std::vector<T>>& phi, float* sh,
+                                      float* mag, float* psi) {
+    const T* const ph[4] = {phi[0].data(), phi[1].data(), phi[2].data(), phi[3].data()};
     const float* const cf = k.sh3.data();  // [job][27]
     for (size_t f = vb; f < ve; ++f) {
         const std::uint32_t parent = map.parent[f];
@@ -249,7 +255,7 @@ void foldFineRange4x9(size_t vb, size_t ve, const BatchCoefs& k, const FineCoars
         if (parent == FineCoarseMap::kNone && row == ShRows::kNone) continue;
         float d[12];
         for (int j = 0; j < 4; ++j)
-            for (int c = 0; c < 3; ++c) d[j * 3 + c] = ph[j][f * 3 + size_t(c)];
+            for (int c = 0; c < 3; ++c) d[j * 3 + c] = depositValue(ph[j][f * 3 + size_t(c)]);
         if (row != ShRows::kNone) addBatchToRow4x9(&sh[row * 27], cf, d);
         if (parent == FineCoarseMap::kNone) continue;  // no mass under the parent: no source of power
         float* m = &mag[f * 3];
@@ -278,7 +284,8 @@ void foldCoarseRange(size_t cb, size_t ce, const BatchCoefs& k, float* acc, floa
 
 }  // namespace
 
-void SeparableFold::fold(bool depositSh, const Job* jobs, size_t n, const std::vector<std::vector<float>>& phi,
+template <class T>
+void SeparableFold::fold(bool depositSh, const Job* jobs, size_t n, const std::vector<std::vector<T>>& phi,
                          std::vector<float>& sh) {
     BatchCoefs k;
     k.n = n;
@@ -313,6 +320,11 @@ void SeparableFold::fold(bool depositSh, const Job* jobs, size_t n, const std::v
     parallelForChunks(map_.sigmaSum.size(), 4096,
                       [&](size_t cb, size_t ce) { foldCoarseRange(cb, ce, k, shapeSum_.data(), psi_.data()); });
 }
+
+template void SeparableFold::fold(bool, const Job*, size_t, const std::vector<std::vector<float>>&,
+                                  std::vector<float>&);
+template void SeparableFold::fold(bool, const Job*, size_t, const std::vector<std::vector<Bf16>>&,
+                                  std::vector<float>&);
 
 // R_C is rounded to half precision (core/half_buffer.h), and |R_C| and the shape's
 // normaliser are taken from the rounded values, so fillBin still gives every fine voxel its

@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/bf16.h"
 #include "core/half_buffer.h"
 #include "core/mass_rows.h"
 #include "core/medium.h"
@@ -89,8 +90,10 @@ class SeparableFold {
 public:
     SeparableFold(const FineCoarseMap& map, const std::vector<float>& sigmaT, const std::vector<double>& binWeight,
                   int shCoeffs, const std::uint32_t* shRow = nullptr);
-    /// Deposits phi[j] [fine voxel][rgb] of jobs[0..n), in job order.
-    void fold(bool depositSh, const Job* jobs, size_t n, const std::vector<std::vector<float>>& phi,
+    /// Deposits phi[j] [fine voxel][rgb] of jobs[0..n), in job order; T is float or Bf16
+    /// (core/bf16.h), each value widened to float as it is read.
+    template <class T>
+    void fold(bool depositSh, const Job* jobs, size_t n, const std::vector<std::vector<T>>& phi,
               std::vector<float>& sh);
     /// The folded source (R_C normalised by the children's sigma sums). Leaves the fold empty.
     /// With `minus` (P_C [bin][row][rgb], held as SeparableSource::offset): the folded source

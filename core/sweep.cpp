@@ -25,6 +25,7 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <type_traits>
 
 #include "core/sweep.h"
 
@@ -394,11 +395,13 @@ void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* ro
 }
 
 // One allocated tile's deposits times k into phi (added, or assigned: phi's earlier values
-// there are overwritten); sums sigma d (sca) and q (src). clear: the deposits read are
-// zeroed (planes shared by a group, each sweep scattering its own).
-template <bool Assign>
-void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, int tu, int tv, float k, float* phi,
+// there are overwritten; a bfloat16 phi, core/bf16.h, only assigned); sums sigma d (sca)
+// and q (src), from the float deposits. clear: the deposits read are zeroed (planes shared
+// by a group, each sweep scattering its own).
+template <bool Assign, class Out>
+void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, int tu, int tv, float k, Out* phi,
                  double sca[3], double src[3], bool clear) {
+    static_assert(Assign || std::is_same_v<Out, float>, "bfloat16 deposits are assigned, never added to");
     constexpr int K = Medium::kTile;
     const std::int32_t slot = f.tileSlot(layer, tu, tv);
     if (slot == -2) return;
@@ -409,10 +412,11 @@ void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, 
             float* q = &P[planeIndex(rows, tv * K + lv, s, tu * K)];
             const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
             for (int lu = 0; lu < w.nU; ++lu) {
-                float* ph = &phi[(x0 + size_t(lu) * w.sU) * 3];
+                Out* ph = &phi[(x0 + size_t(lu) * w.sU) * 3];
                 for (int c = 0; c < 3; ++c) {
                     const float d = q[(4 + c) * kLanes + lu];
-                    if constexpr (Assign) ph[c] = k * d;
+                    if constexpr (std::is_same_v<Out, Bf16>) ph[c] = bf16FromFloat(k * d);
+                    else if constexpr (Assign) ph[c] = k * d;
                     else ph[c] += k * d;
                     ts[c] += q[lu] * d;
                     tq[c] += q[(1 + c) * kLanes + lu];
@@ -487,8 +491,8 @@ public:
     // tile lies in one layer, so a sweep writes each of the block's stored voxels once);
     // sums sigma d and q. clear: those deposits are zeroed for the next sweep of a group
     // (sweepStepGroup).
-    template <bool Assign = false>
-    void scatter(int layer, float k, float* phi, double sca[3], double src[3], bool clear = false) {
+    template <bool Assign = false, class Out = float>
+    void scatter(int layer, float k, Out* phi, double sca[3], double src[3], bool clear = false) {
         for (int tv = 0; tv < f_.tnv; ++tv)
             for (int tu = 0; tu < f_.tnu; ++tu)
                 scatterTile<Assign>(f_, rows_.data(), P_.data(), layer, tu, tv, k, phi, sca, src, clear);
@@ -607,7 +611,8 @@ public:
 
     // After sweepLayer on a group's planes: phi = this sweep's deposits of the layer,
     // which are zeroed for the next sweep of the group.
-    void scatterOwn(int layer, float* phi) {
+    template <class Out>
+    void scatterOwn(int layer, Out* phi) {
         planes_->scatter<true>(layer, float(g_.aPerp) * depositScale_, phi, sca_, injSrc_, true);
     }
 
@@ -992,7 +997,10 @@ std::unique_ptr<ScratchBlock> attachArenas(const std::vector<std::unique_ptr<Ste
 
 }  // namespace
 
-void sweepStepGroup(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<float*>& phi,
+namespace {
+
+template <class Out>
+void sweepGroupInto(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<Out*>& phi,
                     std::vector<Tally>& tallies) {
     if (r < 1 || r > 16) throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(r));
     if (jobs.empty()) return;
@@ -1018,6 +1026,18 @@ void sweepStepGroup(const Medium& m, const std::vector<const Job*>& jobs, int r,
         }
     }
     for (size_t j = 0; j < sweeps.size(); ++j) sweeps[j]->finish(tallies[j]);
+}
+
+}  // namespace
+
+void sweepStepGroup(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<float*>& phi,
+                    std::vector<Tally>& tallies) {
+    sweepGroupInto(m, jobs, r, phi, tallies);
+}
+
+void sweepStepGroup(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<Bf16*>& phi,
+                    std::vector<Tally>& tallies) {
+    sweepGroupInto(m, jobs, r, phi, tallies);
 }
 
 void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,

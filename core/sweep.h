@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/bf16.h"
 #include "core/math.h"
 #include "core/medium.h"
 
@@ -89,6 +90,10 @@ bool samePlanes(const Job& a, const Job& b);
 /// overwritten, so a buffer need not be zeroed between uses; the stored voxels outside the
 /// block (edge tiles' padding) are left as they are.
 void sweepStepGroup(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<float*>& phi,
+                    std::vector<Tally>& tallies);
+/// sweepStepGroup with each deposit rounded to bfloat16 (core/bf16.h) as it is stored:
+/// phi[j] is bf16FromFloat of what the float version stores, the tallies the same.
+void sweepStepGroup(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<Bf16*>& phi,
                     std::vector<Tally>& tallies);
 
 /// The exponential used by sweepStep: exp(-x) for x >= 0, relative error below 3e-7

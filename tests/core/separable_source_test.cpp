@@ -199,6 +199,44 @@ TEST(SeparableSource, FoldKeepsTheFullFoldsIntegralsAndRestriction) {
     }
 }
 
+// Deposits held in bfloat16 (the passes after pass 0) fold as the floats they hold: the
+// same SH, integrals and restriction, bit for bit, with either kernel (9 coefficients in
+// batches of 4: foldFineRange4x9) and any batch.
+TEST(SeparableSource, Bf16DepositsFoldAsTheFloatsTheyHold) {
+    for (int coeffs : {4, 9})
+        for (size_t batch : {size_t(3), size_t(4)}) {
+            SCOPED_TRACE(testing::Message() << coeffs << " coefficients, batches of " << batch);
+            const Medium f = blockWithEmptySlab(4);
+            const FineCoarseMap map(f, coarsen(f));
+            FoldInput in(f, 7, 13, coeffs);
+            std::vector<std::vector<Bf16>> held;
+            for (std::vector<float>& p : in.phi) {
+                held.emplace_back(p.size());
+                for (size_t i = 0; i < p.size(); ++i) {
+                    held.back()[i] = bf16FromFloat(p[i]);
+                    p[i] = floatFromBf16(held.back()[i]);
+                }
+            }
+            SeparableFold fromFloat(map, f.sigmaT, in.binWeight, in.coeffs), fromBf16(map, f.sigmaT, in.binWeight, in.coeffs);
+            std::vector<float> shFloat(f.voxelCount() * size_t(coeffs) * 3, 0.0f), shBf16 = shFloat;
+            for (size_t b0 = 0; b0 < in.jobs.size(); b0 += batch) {
+                const size_t n = std::min(batch, in.jobs.size() - b0);
+                fromFloat.fold(true, &in.jobs[b0], n,
+                               std::vector<std::vector<float>>(in.phi.begin() + long(b0), in.phi.begin() + long(b0 + n)),
+                               shFloat);
+                fromBf16.fold(true, &in.jobs[b0], n,
+                              std::vector<std::vector<Bf16>>(held.begin() + long(b0), held.begin() + long(b0 + n)),
+                              shBf16);
+            }
+            EXPECT_TRUE(shFloat == shBf16);
+            const SeparableSource a = fromFloat.finish(), b = fromBf16.finish();
+            EXPECT_TRUE(a.magnitude == b.magnitude);
+            EXPECT_TRUE(a.shape.bits == b.shape.bits);
+            EXPECT_TRUE(a.norm == b.norm);
+            EXPECT_GT(*std::max_element(shBf16.begin(), shBf16.end()), 0.1f);  // not an empty fold
+        }
+}
+
 // finish(&P) takes a coarse part P from the folded source as it forms it (the two-grid
 // cycle's r' = K E - tail): the restriction is the plain fold's less P (to within R_C's
 // rounding), every fine voxel's angular integral its m_f less P's, no offset is left, and

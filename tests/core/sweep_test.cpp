@@ -354,7 +354,8 @@ TEST(SweepKernel, BatchRefusesMixedAxesOrSources) {
 // every job bit for bit the deposits and tally of its own sweep: dense, sparse with gaps
 // inside tile rows and empty tile rows, with and without a source, r = 1 and 2. The group
 // assigns its deposits: buffers holding other values get every stored voxel of the block
-// overwritten and the padding of edge tiles left alone.
+// overwritten and the padding of edge tiles left alone. The group into bfloat16 buffers
+// stores each of those deposits rounded (core/bf16.h), with the same tallies.
 TEST(SweepKernel, GroupEqualsOwnSweepsBitForBit) {
     const Vec3 dirs[3][3] = {{{1, 0.3, -0.2}, {0.8, -0.5, 0.4}, {0.9, 0.05, 0.6}},
                              {{0.2, 1, 0.1}, {-0.4, 0.9, 0.7}, {0.6, 0.8, -0.3}},
@@ -392,12 +393,26 @@ TEST(SweepKernel, GroupEqualsOwnSweepsBitForBit) {
                         phi.push_back(grouped[size_t(i)].data());
                     }
                     sweepStepGroup(m, ptrs, r, phi, groupT);
+                    const Bf16 stale16 = bf16FromFloat(kStale);
+                    std::vector<std::vector<Bf16>> grouped16(3, std::vector<Bf16>(N * 3, stale16));
+                    std::vector<Bf16*> phi16;
+                    for (auto& g : grouped16) phi16.push_back(g.data());
+                    std::vector<Tally> group16T(3);
+                    sweepStepGroup(m, ptrs, r, phi16, group16T);
                     for (int i = 0; i < 3; ++i) {
                         std::vector<float> want = own[size_t(i)];
                         for (size_t v = 0; v < N; ++v)
                             if (!inBlock[v]) std::fill_n(&want[v * 3], 3, kStale);
                         EXPECT_EQ(want, grouped[size_t(i)])
                             << "layout " << layout << " axis " << axis << " src " << withSrc << " r " << r;
+                        size_t rounded = 0;
+                        for (size_t k = 0; k < N * 3; ++k) {
+                            const std::uint16_t want16 = inBlock[k / 3] ? bf16FromFloat(want[k]).bits : stale16.bits;
+                            rounded += grouped16[size_t(i)][k].bits == want16;
+                        }
+                        EXPECT_EQ(rounded, N * 3) << "bfloat16 layout " << layout << " axis " << axis;
+                        EXPECT_EQ(groupT[size_t(i)].scattered[0], group16T[size_t(i)].scattered[0]);
+                        EXPECT_EQ(groupT[size_t(i)].escaped[1], group16T[size_t(i)].escaped[1]);
                         for (int c = 0; c < 3; ++c) {
                             EXPECT_EQ(ownT[size_t(i)].injected[c], groupT[size_t(i)].injected[c]);
                             EXPECT_EQ(ownT[size_t(i)].escaped[c], groupT[size_t(i)].escaped[c]);
