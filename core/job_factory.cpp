@@ -115,14 +115,14 @@ std::vector<Job> JobFactory::slotJobs(const std::vector<std::vector<float>>& slo
     return jobs;
 }
 
-std::vector<Job> JobFactory::binJobs(const float* binSource, const RGB& albedo, std::vector<int>& jobBin) const {
+std::vector<Job> JobFactory::binJobs(const Bf16* binSource, const RGB& albedo, std::vector<int>& jobBin) const {
     std::vector<Job> jobs;
     jobBin.clear();
     for (int d = 0; d < ff_.binCount(); ++d)
         for (int i = 0; i < quad_.count(); ++i) {
             if (ff_.binOfDirection(i) != d) continue;
             Job j = direction(i);
-            j.src = binSource;
+            j.srcBf16 = binSource;
             j.srcStride = 3;
             j.srcScale = albedo;
             jobs.push_back(std::move(j));

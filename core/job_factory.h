@@ -29,7 +29,7 @@ public:
     /// A propagation pass of a separable source (core/separable_source.h): the directions
     /// ordered by unshot bin, all reading `binSource` ([voxel][rgb]), which holds the bin of
     /// the jobs being swept. jobBin[j] receives job j's bin.
-    std::vector<Job> binJobs(const float* binSource, const RGB& albedo, std::vector<int>& jobBin) const;
+    std::vector<Job> binJobs(const Bf16* binSource, const RGB& albedo, std::vector<int>& jobBin) const;
     /// sourceJobs' jobs (a voxel-constant source), in its order, job j reading its bin from
     /// slots[j % slots.size()] ([voxel][rgb]), which the caller fills before sweeping it.
     /// jobBin[j] receives job j's bin.

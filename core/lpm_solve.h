@@ -105,7 +105,7 @@ private:
         FineCoarseMap map;
         std::vector<double> binWeight;
         SeparableSource unshot, next;
-        std::vector<float> binSource;  ///< [voxel][rgb]: the source of the bin being swept
+        std::vector<Bf16> binSource;  ///< [voxel][rgb]: the source of the bin being swept, in bfloat16
         explicit SeparableState(const Medium& fine);
     };
     std::unique_ptr<SeparableState> sep_;

@@ -16,7 +16,7 @@ namespace lpm {
 
 std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>& jobs, int split) {
     auto sameKey = [](const Job& a, const Job& b) {
-        return a.axis == b.axis && a.src == b.src && a.srcStride == b.srcStride && a.srcScale.r == b.srcScale.r &&
+        return a.axis == b.axis && a.src == b.src && a.srcBf16 == b.srcBf16 && a.srcStride == b.srcStride && a.srcScale.r == b.srcScale.r &&
                a.srcScale.g == b.srcScale.g && a.srcScale.b == b.srcScale.b;
     };
     std::vector<std::vector<const Job*>> keys;

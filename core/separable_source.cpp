@@ -103,8 +103,12 @@ namespace {
 /// Coarse voxels [cb, ce) of fillBin: each parent's row decoded once and written to its
 /// children, U_f(bin) = R_C + (m_f - |R_C|) S_C + P_C (see the file comment). Every fine
 /// voxel has one parent, so each output is written once, by one thread.
-LPM_SIMD_CLONES
-void fillBinRange(size_t cb, size_t ce, const SeparableSource& u, const std::uint32_t* children, int bin, float* out) {
+inline void storeSource(float* out, float x) { *out = x; }
+inline void storeSource(Bf16* out, float x) { *out = bf16FromFloat(x); }
+
+template <class T>
+LPM_SIMD_CLONES void fillBinRange(size_t cb, size_t ce, const SeparableSource& u, const std::uint32_t* children,
+                                  int bin, T* out) {
     for (size_t p = cb; p < ce; ++p) {
         const std::uint32_t* kids = &children[p * 8];
         for (size_t c = 0; c < 3; ++c) {
@@ -114,7 +118,7 @@ void fillBinRange(size_t cb, size_t ce, const SeparableSource& u, const std::uin
             const float n = u.norm[pc], off = u.offset.empty() ? 0.0f : u.offsetAt(i);
             for (int k = 0; k < 8; ++k)
                 if (kids[k] != FineCoarseMap::kNone)
-                    out[size_t(kids[k]) * 3 + c] = r + (u.magnitude[size_t(kids[k]) * 3 + c] - n) * s + off;
+                    storeSource(&out[size_t(kids[k]) * 3 + c], r + (u.magnitude[size_t(kids[k]) * 3 + c] - n) * s + off);
         }
     }
 }
@@ -123,15 +127,19 @@ void fillBinRange(size_t cb, size_t ce, const SeparableSource& u, const std::uin
 
 // Fine voxels without a parent (outside the block) are set to 0 first; the parents' rows
 // are decoded once each (not once per child: 8x fewer half decodes, no P_C buffer).
-void SeparableSource::fillBin(const FineCoarseMap& map, int bin, float* out) const {
+template <class T>
+void SeparableSource::fillBin(const FineCoarseMap& map, int bin, T* out) const {
     parallelForChunks(map.parent.size(), 1 << 14, [&](size_t vb, size_t ve) {
         for (size_t v = vb; v < ve; ++v)
             if (map.parent[v] == FineCoarseMap::kNone)
-                for (size_t c = 0; c < 3; ++c) out[v * 3 + c] = 0.0f;
+                for (size_t c = 0; c < 3; ++c) out[v * 3 + c] = T{};
     });
     parallelForChunks(map.sigmaSum.size(), 1 << 11,
                       [&](size_t cb, size_t ce) { fillBinRange(cb, ce, *this, map.children.data(), bin, out); });
 }
+
+template void SeparableSource::fillBin(const FineCoarseMap&, int, float*) const;
+template void SeparableSource::fillBin(const FineCoarseMap&, int, Bf16*) const;
 
 double SeparableSource::power(const FineCoarseMap& map, const std::vector<double>& binWeight, const RGB& albedo,
                               double fineVoxelVolume) const {

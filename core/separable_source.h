@@ -75,8 +75,10 @@ struct SeparableSource {
     std::vector<float> restricted() const;
     /// P_C at held index h (heldIndex).
     float offsetAt(size_t h) const;
-    /// out [fine voxel][rgb] = U_f(bin), 0 for voxels outside the block.
-    void fillBin(const FineCoarseMap& map, int bin, float* out) const;
+    /// out [fine voxel][rgb] = U_f(bin), 0 for voxels outside the block; T is float or Bf16
+    /// (core/bf16.h: each value rounded as it is stored).
+    template <class T>
+    void fillBin(const FineCoarseMap& map, int bin, T* out) const;
     /// Source power sum_f sigma_s U_f(d) w_d V, mean over RGB (as LpmSolve::sourcePower).
     double power(const FineCoarseMap& map, const std::vector<double>& binWeight, const RGB& albedo,
                  double fineVoxelVolume) const;

@@ -338,10 +338,11 @@ inline size_t planeIndex(const PlaneRow* rows, int cv, int s, int cu) {
 struct GatherSource {
     const float* sigma;
     const float* src;
+    const Bf16* srcBf16;
     size_t stride;
     float scale[3];
     GatherSource(const Medium& m, const Job& job)
-        : sigma(m.sigmaT.data()), src(job.src),
+        : sigma(m.sigmaT.data()), src(job.src), srcBf16(job.srcBf16),
           stride(job.srcStride), scale{job.srcScale.r, job.srcScale.g, job.srcScale.b} {}
 };
 
@@ -358,6 +359,9 @@ inline void gatherChunk(const GatherSource& g, bool empty, size_t x0, size_t sU,
         q[lu] = sg;
         if (g.src)
             for (int c = 0; c < 3; ++c) q[(1 + c) * kLanes + lu] = sg * g.scale[c] * g.src[x * g.stride + c];
+        else if (g.srcBf16)
+            for (int c = 0; c < 3; ++c)
+                q[(1 + c) * kLanes + lu] = sg * g.scale[c] * floatFromBf16(g.srcBf16[x * g.stride + c]);
     }
     // 1/sigma over the whole chunk at once: one vector division (padding lanes are 0).
     for (int i = 0; i < kLanes; ++i) q[7 * kLanes + i] = q[i] > 0 ? 1.0f / q[i] : 0.0f;
@@ -916,7 +920,7 @@ private:
             const size_t first = planeIndex(planes_->rows(), vr, slice_, lo);  // lo tile-aligned: a whole chunk
             float* plane = &planes_->data()[first];
             const float* range = &planes_->sigRanges()[2 * (first / kChunk)];
-            if (job_.src)
+            if (job_.hasSource())
                 segmentChunks<true>(chunks, float(e.len), dk_, plane, range, at(row, 0, lo), size_t(cap_[row]));
             else segmentChunks<false>(chunks, float(e.len), dk_, plane, range, at(row, 0, lo), size_t(cap_[row]));
             segs_ += std::uint64_t(hi - lo);
@@ -970,7 +974,7 @@ void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally,
 }
 
 bool samePlanes(const Job& a, const Job& b) {
-    return !a.srcLinear && !b.srcLinear && a.axis == b.axis && a.src == b.src && a.srcStride == b.srcStride &&
+    return !a.srcLinear && !b.srcLinear && a.axis == b.axis && a.src == b.src && a.srcBf16 == b.srcBf16 && a.srcStride == b.srcStride &&
            a.srcScale.r == b.srcScale.r && a.srcScale.g == b.srcScale.g && a.srcScale.b == b.srcScale.b;
 }
 

@@ -46,12 +46,16 @@ struct Job {
     RGB boundary;                         ///< radiance (irradiance for suns) entering through the faces
     double weight = 1;                    ///< solid angle of the direction bin (1 for suns)
     const float* src = nullptr;           ///< per-voxel RGB radiance feeding the source, or null
+    /// Or the same in bfloat16 (core/bf16.h; a voxel-constant source of stride 3, read by
+    /// the fast kernels only): the separable passes' bin source.
+    const Bf16* srcBf16 = nullptr;
     size_t srcStride = 3;                 ///< floats between consecutive voxels in src
     bool srcLinear = false;               ///< src also holds the x, y, z slopes (3 RGB triples after the mean)
     RGB srcScale;                         ///< Q_c = sigma_t * srcScale_c * src_c
     double offsetU = 0.5, offsetV = 0.5;  ///< ray-lattice offset within a lattice cell, [0, 1)
     std::vector<double> shCoef;           ///< per SH coefficient: multiplies Phi (includes 1/V)
     std::vector<double> binCoef;          ///< per unshot bin: multiplies Phi (includes 1/V)
+    bool hasSource() const { return src || srcBf16; }
 };
 
 /// Index of the largest component of w.

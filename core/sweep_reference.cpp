@@ -308,6 +308,7 @@ private:
 
 template <bool Linear>
 void sweepReference(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
+    if (job.srcBf16) throw Error("LPM", "the reference kernel reads a float source, not a bfloat16 one");
     ReferenceSweep<Linear>(m, job, r, phi).run(tally);
 }
 

@@ -9,7 +9,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
+#include "core/held_sh.h"
 #include "core/lpm_solve.h"
 #include "core/malloc_policy.h"
 #include "core/multires.h"
@@ -155,12 +157,26 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
     double rPower = res_.passes.back().scattered;
     for (; cycles < kCycles && p < s_.maxOrders; ++cycles) {
         runner_->releaseBuffers();  // and the bin source: the coarse solve is the peak
-        sep_->binSource = std::vector<float>();
+        sep_->binSource = std::vector<Bf16>();
+        // So does the SH result, which waits with its directional bands in half precision
+        // (core/held_sh.h) until the next fine pass adds to it.
+        std::optional<HeldSh> heldSh;
+        if (nc_ > 1 && !res_.sh.empty()) {
+            returnFreedHeapPages();  // the fine pass's freed buffers, before the held copy is written
+            heldSh.emplace(res_.sh, nc_);
+        }
         returnFreedHeapPages();
         // E = r + tail. The tail is held in half precision (core/half_buffer.h): the same
         // rounded tail is added to E and taken from r', so the rounding moves no energy.
         r.offset.push_back(SeparableSource::holdByBin(
             coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count, &sep_->map.coarseRows), r.bins));
+        if (heldSh) {
+            // The coarse solve's freed pages go back before the result is expanded into new
+            // ones (no hole of the heap holds it), and the held copy's after it.
+            returnFreedHeapPages();
+            heldSh->restore(res_.sh);
+            returnFreedHeapPages();
+        }
         const auto tf = Clock::now();
         Tally t;
         // r' = K E - tail, the tail taken from K E's coarse shape as the fold finishes, so

@@ -294,6 +294,7 @@ TEST(SeparableSource, FinishTakesAPartFromTheRestrictionAndEveryIntegral) {
 // coarse voxel comes back to within R_C's rounding (2^-11 of each bin's value, twice over
 // with the normalisation); the power, with a coarse offset of two half-precision parts, is
 // that of the full source with their sum injected, to within the same rounding.
+// Filled into bfloat16, each value is the float fill rounded (core/bf16.h).
 TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
     const Medium f = blockWithEmptySlab(6);
     const Medium c = coarsen(f);
@@ -345,8 +346,12 @@ TEST(SeparableSource, FillBinReconstructsIntegralsShapesAndPower) {
     addCoarse(f, c, atCoarseVoxels(map, offsetSum, size_t(bins) * 3), bins, 1, 1.0f, withTail);
     std::vector<float> out(f.voxelCount() * 3);
     std::vector<double> integral(f.voxelCount() * 3, 0.0);
+    std::vector<Bf16> out16(out.size(), bf16FromFloat(3.0f));
     for (int d = 0; d < bins; ++d) {
         s.fillBin(map, d, out.data());
+        // The bfloat16 fill (the separable passes' bin source) stores each value rounded.
+        s.fillBin(map, d, out16.data());
+        for (size_t i = 0; i < out.size(); ++i) ASSERT_EQ(out16[i].bits, bf16FromFloat(out[i]).bits) << i;
         for (size_t v = 0; v < f.voxelCount(); ++v)
             for (int ch = 0; ch < 3; ++ch) {
                 // Under a coarse voxel with no extinction the shape is unknown (0): a source

@@ -434,6 +434,6 @@ TEST(SweepKernel, GroupRefusesMixedSignsAxesOrSources) {
     std::vector<float> p0(m.voxelCount() * 3, 0.0f), p1 = p0;
     std::vector<Tally> t(2);
     for (const Job* other : {&b, &c, &d})
-        EXPECT_THROW(sweepStepGroup(m, {&a, other}, 2, {p0.data(), p1.data()}, t), Error);
-    EXPECT_THROW(sweepStepGroup(m, {&a, &a}, 2, {p0.data()}, t), Error);
+        EXPECT_THROW(sweepStepGroup(m, {&a, other}, 2, std::vector<float*>{p0.data(), p1.data()}, t), Error);
+    EXPECT_THROW(sweepStepGroup(m, {&a, &a}, 2, std::vector<float*>{p0.data()}, t), Error);
 }
