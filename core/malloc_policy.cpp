@@ -126,6 +126,19 @@ void populateInParallel(void* p, std::size_t bytes) {
 #endif
 }
 
+void discardPages(void* p, std::size_t bytes) {
+#if defined(__linux__)
+    const std::uintptr_t page = std::uintptr_t(sysconf(_SC_PAGESIZE));
+    if (!p || page == 0) return;
+    const std::uintptr_t lo = (reinterpret_cast<std::uintptr_t>(p) + page - 1) & ~(page - 1);
+    const std::uintptr_t hi = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(page - 1);
+    if (hi > lo) madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_DONTNEED);  // best effort: errors ignored
+#else
+    (void)p;
+    (void)bytes;
+#endif
+}
+
 void adviseHugePages(void* p, std::size_t bytes) {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
     constexpr std::uintptr_t kHuge = std::uintptr_t(2) << 20;

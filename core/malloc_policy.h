@@ -60,6 +60,13 @@ bool heapAdviceSupported();
 /// off, or off Linux.
 void adviseHugePages(void* p, std::size_t bytes);
 
+/// Gives the whole pages inside [p, p + bytes) back to the kernel (MADV_DONTNEED) while the
+/// block stays allocated: they read as zeros and are faulted in again when next written.
+/// For a large buffer whose values wait elsewhere (core/held_sh.h): its address range stays
+/// its own, so the values come back to the same storage, not to a new block the heap may
+/// have to grow for. Best effort: elsewhere than Linux the pages stay resident.
+void discardPages(void* p, std::size_t bytes);
+
 /// Faults [p, p + bytes) in, zero-filled, with the pages shared out over the threads
 /// (MADV_POPULATE_WRITE in 2 MiB pieces): on this VM a first touch costs about 1 ms per
 /// MiB, and a buffer zeroed by one thread kept the others waiting. Contents are unchanged

@@ -171,11 +171,8 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         r.offset.push_back(SeparableSource::holdByBin(
             coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count, &sep_->map.coarseRows), r.bins));
         if (heldSh) {
-            // The coarse solve's freed pages go back before the result is expanded into new
-            // ones (no hole of the heap holds it), and the held copy's after it.
-            returnFreedHeapPages();
-            heldSh->restore(res_.sh);
-            returnFreedHeapPages();
+            returnFreedHeapPages();         // the coarse solve's freed buffers, before the SH comes back
+            heldSh->restore(res_.sh);  // into its own pages (core/held_sh.h)
         }
         const auto tf = Clock::now();
         Tally t;
