@@ -415,11 +415,17 @@ void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, 
         for (int lv = 0; lv < w.nV; ++lv) {
             float* q = &P[planeIndex(rows, tv * K + lv, s, tu * K)];
             const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
+            // bfloat16: the chunk's values rounded at once (contiguous lanes: vector code),
+            // then stored at the voxels' strided places.
+            std::uint16_t rounded[3][kLanes];
+            if constexpr (std::is_same_v<Out, Bf16>)
+                for (int c = 0; c < 3; ++c)
+                    for (int lu = 0; lu < kLanes; ++lu) rounded[c][lu] = bf16FromFloat(k * q[(4 + c) * kLanes + lu]).bits;
             for (int lu = 0; lu < w.nU; ++lu) {
                 Out* ph = &phi[(x0 + size_t(lu) * w.sU) * 3];
                 for (int c = 0; c < 3; ++c) {
                     const float d = q[(4 + c) * kLanes + lu];
-                    if constexpr (std::is_same_v<Out, Bf16>) ph[c] = bf16FromFloat(k * d);
+                    if constexpr (std::is_same_v<Out, Bf16>) ph[c].bits = rounded[c][lu];
                     else if constexpr (Assign) ph[c] = k * d;
                     else ph[c] += k * d;
                     ts[c] += q[lu] * d;
