@@ -32,8 +32,8 @@ HeldSh::HeldSh(std::vector<float>& sh, int coeffs) : coeffs_(coeffs) {
 void HeldSh::restore(std::vector<float>& sh) {
     const size_t width = size_t(coeffs_) * 3, rest = width - 3, rows = band0_.size() / 3;
     if (sh.size() != rows * width)
-        throw Error("HeldSh", "restoring " + std::to_string(rows) + " rows into " + std::to_string(sh.size()) +
-                                  " values");
+        throw Error("HeldSh",
+                    "restoring " + std::to_string(rows) + " rows into " + std::to_string(sh.size()) + " values");
     parallelForChunks(rows, 1 << 12, [&](size_t b, size_t e) {
         for (size_t row = b; row < e; ++row) {
             float* out = &sh[row * width];

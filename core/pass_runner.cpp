@@ -16,8 +16,8 @@ namespace lpm {
 
 std::vector<std::vector<const Job*>> sweepBatches(const std::vector<Job>& jobs, int split) {
     auto sameKey = [](const Job& a, const Job& b) {
-        return a.axis == b.axis && a.src == b.src && a.srcBf16 == b.srcBf16 && a.srcStride == b.srcStride && a.srcScale.r == b.srcScale.r &&
-               a.srcScale.g == b.srcScale.g && a.srcScale.b == b.srcScale.b;
+        return a.axis == b.axis && a.src == b.src && a.srcBf16 == b.srcBf16 && a.srcStride == b.srcStride &&
+               a.srcScale.r == b.srcScale.r && a.srcScale.g == b.srcScale.g && a.srcScale.b == b.srcScale.b;
     };
     std::vector<std::vector<const Job*>> keys;
     for (const Job& j : jobs) {
@@ -193,9 +193,8 @@ void PassRunner::sweepInBatchesBf16(const std::vector<Job>& jobs, const std::vec
 }
 
 template <class T>
-void PassRunner::sweepBatchesInto(const std::vector<Job>& jobs, const std::vector<size_t>& starts, int r,
-                                  Tally& total, const std::function<void(size_t)>& before,
-                                  const BatchFoldOf<T>& fold) const {
+void PassRunner::sweepBatchesInto(const std::vector<Job>& jobs, const std::vector<size_t>& starts, int r, Tally& total,
+                                  const std::function<void(size_t)>& before, const BatchFoldOf<T>& fold) const {
     const size_t N = m_.voxelCount();
     const int M = shape_.moments;
     for (size_t b = 0; b < starts.size(); ++b) {

@@ -12,7 +12,8 @@ LpmSolve::SeparableState::SeparableState(const Medium& fine) : coarse(coarsen(fi
 
 void LpmSolve::runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs,
                                 const HalfBuffer* takeFromNext) {
-    constexpr size_t kBatch = 4;  // 4 deposit buffers of 12 B per voxel in pass 0, 6 B after (8 x 12 B in the full fold)
+    // 4 deposit buffers of 12 B per voxel in pass 0, 6 B after (8 x 12 B in the full fold)
+    constexpr size_t kBatch = 4;
     std::vector<int> jobBin;
     std::vector<Job> binJobs;
     if (src) {

@@ -118,7 +118,8 @@ LPM_SIMD_CLONES void fillBinRange(size_t cb, size_t ce, const SeparableSource& u
             const float n = u.norm[pc], off = u.offset.empty() ? 0.0f : u.offsetAt(i);
             for (int k = 0; k < 8; ++k)
                 if (kids[k] != FineCoarseMap::kNone)
-                    storeSource(&out[size_t(kids[k]) * 3 + c], r + (u.magnitude[size_t(kids[k]) * 3 + c] - n) * s + off);
+                    storeSource(&out[size_t(kids[k]) * 3 + c],
+                                r + (u.magnitude[size_t(kids[k]) * 3 + c] - n) * s + off);
         }
     }
 }
@@ -331,8 +332,7 @@ void SeparableFold::fold(bool depositSh, const Job* jobs, size_t n, const std::v
 
 template void SeparableFold::fold(bool, const Job*, size_t, const std::vector<std::vector<float>>&,
                                   std::vector<float>&);
-template void SeparableFold::fold(bool, const Job*, size_t, const std::vector<std::vector<Bf16>>&,
-                                  std::vector<float>&);
+template void SeparableFold::fold(bool, const Job*, size_t, const std::vector<std::vector<Bf16>>&, std::vector<float>&);
 
 // R_C is rounded to half precision (core/half_buffer.h), and |R_C| and the shape's
 // normaliser are taken from the rounded values, so fillBin still gives every fine voxel its

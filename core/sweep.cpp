@@ -420,7 +420,8 @@ void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, 
             std::uint16_t rounded[3][kLanes];
             if constexpr (std::is_same_v<Out, Bf16>)
                 for (int c = 0; c < 3; ++c)
-                    for (int lu = 0; lu < kLanes; ++lu) rounded[c][lu] = bf16FromFloat(k * q[(4 + c) * kLanes + lu]).bits;
+                    for (int lu = 0; lu < kLanes; ++lu)
+                        rounded[c][lu] = bf16FromFloat(k * q[(4 + c) * kLanes + lu]).bits;
             for (int lu = 0; lu < w.nU; ++lu) {
                 Out* ph = &phi[(x0 + size_t(lu) * w.sU) * 3];
                 for (int c = 0; c < 3; ++c) {
@@ -980,8 +981,9 @@ void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally,
 }
 
 bool samePlanes(const Job& a, const Job& b) {
-    return !a.srcLinear && !b.srcLinear && a.axis == b.axis && a.src == b.src && a.srcBf16 == b.srcBf16 && a.srcStride == b.srcStride &&
-           a.srcScale.r == b.srcScale.r && a.srcScale.g == b.srcScale.g && a.srcScale.b == b.srcScale.b;
+    return !a.srcLinear && !b.srcLinear && a.axis == b.axis && a.src == b.src && a.srcBf16 == b.srcBf16 &&
+           a.srcStride == b.srcStride && a.srcScale.r == b.srcScale.r && a.srcScale.g == b.srcScale.g &&
+           a.srcScale.b == b.srcScale.b;
 }
 
 namespace {

@@ -43,9 +43,9 @@ struct Tally {
 struct Job {
     Vec3 w;  ///< local unit travel direction
     int axis = 0, sign = 1;
-    RGB boundary;                         ///< radiance (irradiance for suns) entering through the faces
-    double weight = 1;                    ///< solid angle of the direction bin (1 for suns)
-    const float* src = nullptr;           ///< per-voxel RGB radiance feeding the source, or null
+    RGB boundary;                ///< radiance (irradiance for suns) entering through the faces
+    double weight = 1;           ///< solid angle of the direction bin (1 for suns)
+    const float* src = nullptr;  ///< per-voxel RGB radiance feeding the source, or null
     /// Or the same in bfloat16 (core/bf16.h; a voxel-constant source of stride 3, read by
     /// the fast kernels only): the separable passes' bin source.
     const Bf16* srcBf16 = nullptr;

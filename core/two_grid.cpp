@@ -171,7 +171,7 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         r.offset.push_back(SeparableSource::holdByBin(
             coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count, &sep_->map.coarseRows), r.bins));
         if (heldSh) {
-            returnFreedHeapPages();         // the coarse solve's freed buffers, before the SH comes back
+            returnFreedHeapPages();    // the coarse solve's freed buffers, before the SH comes back
             heldSh->restore(res_.sh);  // into its own pages (core/held_sh.h)
         }
         const auto tf = Clock::now();

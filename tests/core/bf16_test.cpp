@@ -72,7 +72,7 @@ TEST(Bf16, InfinityNanAndTheTopOfTheRange) {
     EXPECT_EQ(floatFromBf16(bf16FromFloat(inf)), inf);
     EXPECT_EQ(floatFromBf16(bf16FromFloat(-inf)), -inf);
     EXPECT_TRUE(std::isnan(floatFromBf16(bf16FromFloat(std::numeric_limits<float>::quiet_NaN()))));
-    EXPECT_TRUE(std::isnan(floatFromBf16(bf16FromFloat(fromBits(0x7f800001u)))));  // payload in the dropped bits
+    EXPECT_TRUE(std::isnan(floatFromBf16(bf16FromFloat(fromBits(0x7f800001u)))));     // payload in the dropped bits
     EXPECT_EQ(floatFromBf16(bf16FromFloat(std::numeric_limits<float>::max())), inf);  // within half an ulp of it
     EXPECT_EQ(floatFromBf16(bf16FromFloat(fromBits(0x7f7f0000u))), fromBits(0x7f7f0000u));
     EXPECT_EQ(bf16FromFloat(-0.0f).bits, 0x8000u);

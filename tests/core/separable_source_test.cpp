@@ -217,13 +217,14 @@ TEST(SeparableSource, Bf16DepositsFoldAsTheFloatsTheyHold) {
                     p[i] = floatFromBf16(held.back()[i]);
                 }
             }
-            SeparableFold fromFloat(map, f.sigmaT, in.binWeight, in.coeffs), fromBf16(map, f.sigmaT, in.binWeight, in.coeffs);
+            SeparableFold fromFloat(map, f.sigmaT, in.binWeight, in.coeffs),
+                fromBf16(map, f.sigmaT, in.binWeight, in.coeffs);
             std::vector<float> shFloat(f.voxelCount() * size_t(coeffs) * 3, 0.0f), shBf16 = shFloat;
             for (size_t b0 = 0; b0 < in.jobs.size(); b0 += batch) {
                 const size_t n = std::min(batch, in.jobs.size() - b0);
-                fromFloat.fold(true, &in.jobs[b0], n,
-                               std::vector<std::vector<float>>(in.phi.begin() + long(b0), in.phi.begin() + long(b0 + n)),
-                               shFloat);
+                fromFloat.fold(
+                    true, &in.jobs[b0], n,
+                    std::vector<std::vector<float>>(in.phi.begin() + long(b0), in.phi.begin() + long(b0 + n)), shFloat);
                 fromBf16.fold(true, &in.jobs[b0], n,
                               std::vector<std::vector<Bf16>>(held.begin() + long(b0), held.begin() + long(b0 + n)),
                               shBf16);
