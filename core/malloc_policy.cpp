@@ -54,6 +54,16 @@ void adviseHeapOntoHugePages() {
 // Set once keepFreedBuffersForReuse has fixed the mmap threshold at 32 MiB.
 bool g_heapPolicy = false;
 
+/// The whole `unit`-aligned blocks inside [p, p + bytes) (unit a power of two), as
+/// [lo, hi); empty when hi <= lo.
+struct AlignedRange {
+    std::uintptr_t lo, hi;
+};
+[[maybe_unused]] AlignedRange alignedInside(const void* p, std::size_t bytes, std::uintptr_t unit) {
+    const std::uintptr_t a = reinterpret_cast<std::uintptr_t>(p);
+    return {(a + unit - 1) & ~(unit - 1), (a + bytes) & ~(unit - 1)};
+}
+
 }  // namespace
 
 void prepareHeapForSmallBlocks(std::size_t bytes) {
@@ -102,9 +112,8 @@ void populateInParallel(void* p, std::size_t bytes) {
 #endif
     constexpr std::uintptr_t kPiece = std::uintptr_t(2) << 20;
     if (!p || bytes < 2 * kPiece || maxThreads() < 2) return;
-    const std::uintptr_t page = std::uintptr_t(sysconf(_SC_PAGESIZE));
-    const std::uintptr_t lo = (reinterpret_cast<std::uintptr_t>(p) + page - 1) & ~(page - 1);
-    const std::uintptr_t hi = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(page - 1);
+    const AlignedRange pages = alignedInside(p, bytes, std::uintptr_t(sysconf(_SC_PAGESIZE)));
+    const std::uintptr_t lo = pages.lo, hi = pages.hi;  // (a lambda cannot capture a structured binding in C++17)
     if (hi <= lo) return;
     // Pieces on 2 MiB boundaries, so each huge page is faulted by one thread.
     const std::uintptr_t first = (lo + kPiece) & ~(kPiece - 1);
@@ -128,10 +137,8 @@ void populateInParallel(void* p, std::size_t bytes) {
 
 void discardPages(void* p, std::size_t bytes) {
 #if defined(__linux__)
-    const std::uintptr_t page = std::uintptr_t(sysconf(_SC_PAGESIZE));
-    if (!p || page == 0) return;
-    const std::uintptr_t lo = (reinterpret_cast<std::uintptr_t>(p) + page - 1) & ~(page - 1);
-    const std::uintptr_t hi = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(page - 1);
+    if (!p) return;
+    const auto [lo, hi] = alignedInside(p, bytes, std::uintptr_t(sysconf(_SC_PAGESIZE)));
     if (hi > lo) madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_DONTNEED);  // best effort: errors ignored
 #else
     (void)p;
@@ -143,8 +150,7 @@ void adviseHugePages(void* p, std::size_t bytes) {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
     constexpr std::uintptr_t kHuge = std::uintptr_t(2) << 20;
     if (!p || bytes < kHuge) return;
-    const std::uintptr_t lo = (reinterpret_cast<std::uintptr_t>(p) + kHuge - 1) & ~(kHuge - 1);
-    const std::uintptr_t hi = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHuge - 1);
+    const auto [lo, hi] = alignedInside(p, bytes, kHuge);
     if (hi > lo) madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);  // best effort: errors ignored
 #else
     (void)p;
