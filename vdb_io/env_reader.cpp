@@ -1,12 +1,11 @@
-// Environment images: OpenImageIO read, NaN policy, OCIO conversion, lat-long checks.
+// Environment images: read by the image helper (OpenImageIO), NaN policy, OCIO conversion, lat-long checks.
 #include "vdb_io/env_reader.h"
 
 #include <cmath>
 #include <cstdint>
 
-#include <OpenImageIO/imageio.h>
-
 #include "vdb_io/color.h"
+#include "vdb_io/image_helper.h"
 #include "vdb_io/io_error.h"
 
 namespace lpm {
@@ -15,42 +14,20 @@ namespace {
 const char* kComp = "env";
 }
 
-// 32768 x 16384: the largest lat-long lpmbake reads (2^29 pixels, 6 GiB as float RGB,
-// held twice while converting). A corrupt header can claim any size; refusing here keeps
-// that from becoming a many-gigabyte allocation (or the OOM killer) before a pixel is read.
-const std::int64_t kMaxEnvPixels = std::int64_t(1) << 29;
-
 std::vector<float> readRgbImage(const std::string& path, int& width, int& height, int& channels,
                                 std::string& fileColorSpace, std::vector<std::string>& warnings) {
-    auto in = OIIO::ImageInput::open(path);
-    if (!in) throw InputError(kComp, "cannot read image '" + path + "': " + OIIO::geterror());
-    const OIIO::ImageSpec& spec = in->spec();  // subimage 0, MIP level 0: full resolution
-    width = spec.width;
-    height = spec.height;
-    channels = spec.nchannels;
-    if (width <= 0 || height <= 0 || channels <= 0)
-        throw InputError(kComp, "image '" + path + "' is empty (" + std::to_string(width) + "x" +
-                                    std::to_string(height) + ", " + std::to_string(channels) + " channels)");
-    if (std::int64_t(width) * height > kMaxEnvPixels)
-        throw InputError(kComp, "image '" + path + "' is " + std::to_string(width) + "x" + std::to_string(height) +
-                                    ", more than lpmbake's limit of " + std::to_string(kMaxEnvPixels) +
-                                    " pixels (32768x16384); downsample it");
-    fileColorSpace = spec.get_string_attribute("oiio:ColorSpace");
-    if (spec.find_attribute("chromaticities"))
-        warnings.push_back("'" + path +
-                           "' has a chromaticities attribute, which lpmbake does not read; say which "
-                           "colour space the pixels are in with --env-colorspace");
-    const int nread = std::min(channels, 3);
-    std::vector<float> buf(size_t(width) * height * nread);
-    if (!in->read_image(0, 0, 0, nread, OIIO::TypeDesc::FLOAT, buf.data()))
-        throw InputError(kComp, "cannot read the pixels of '" + path + "': " + in->geterror());
-    in->close();
-    if (nread == 3) return buf;
-    // Grey (or grey + alpha): replicate the first channel.
-    std::vector<float> rgb(size_t(width) * height * 3);
-    for (size_t p = 0; p < size_t(width) * height; ++p) rgb[p * 3] = rgb[p * 3 + 1] = rgb[p * 3 + 2] = buf[p * nread];
-    if (nread == 2) warnings.push_back("'" + path + "' has 2 channels: using the first as grey");
-    return rgb;
+    DecodedImage img;
+    try {
+        img = decodeImageWithHelper(path);
+    } catch (const std::runtime_error& e) {
+        throw InputError(kComp, e.what());
+    }
+    width = img.width;
+    height = img.height;
+    channels = img.fileChannels;
+    fileColorSpace = img.fileColorSpace;
+    warnings.insert(warnings.end(), img.warnings.begin(), img.warnings.end());
+    return std::move(img.rgb);
 }
 
 void EnvReadOptions::validate() const {

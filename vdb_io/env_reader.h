@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/envmap.h"
+#include "vdb_io/image_codec.h"  // kMaxEnvPixels
 
 namespace lpm {
 
@@ -37,7 +38,6 @@ struct EnvInput {
 EnvInput readEnvironment(const EnvReadOptions& options);
 
 /// The most pixels an environment image may have (32768 x 16384); larger ones are refused.
-extern const std::int64_t kMaxEnvPixels;
 
 /// Reads an image as packed RGB floats (first 3 channels, grey replicated), top row first,
 /// at full resolution. Throws InputError. Exposed for tests and the renderer.

@@ -5,9 +5,8 @@
 #include <cctype>
 #include <filesystem>
 
-#include <OpenImageIO/imageio.h>
-
 #include "vdb_io/color.h"
+#include "vdb_io/image_helper.h"
 #include "vdb_io/io_error.h"
 
 namespace lpm {
@@ -44,29 +43,27 @@ std::string previewImageEncoding(const std::string& path, const std::string& wor
 }
 
 void writePreviewImage(AtomicOutput& out, std::vector<float> img, int width, int height, const std::string& working) {
-    const bool png = extension(out.finalPath()) == ".png";
-    OIIO::ImageSpec spec(width, height, 3, png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::HALF);
-    spec.attribute("Software", std::string("lpmbake ") + LPM_VERSION_STRING);
-    if (png) {
+    ImageToEncode image;
+    image.width = width;
+    image.height = height;
+    image.png = extension(out.finalPath()) == ".png";
+    image.attributes.emplace_back("Software", std::string("lpmbake ") + LPM_VERSION_STRING);
+    if (image.png) {
         convertToDisplay(img, working);  // config's default display and view (sRGB / Standard)
         for (float& c : img) c = std::clamp(c, 0.f, 1.f);
-        spec.attribute("oiio:ColorSpace", "sRGB");
+        image.attributes.emplace_back("oiio:ColorSpace", "sRGB");
     } else {
-        spec.attribute("oiio:ColorSpace", working);
-        spec.attribute("lpm:colorspace", working);
+        image.attributes.emplace_back("oiio:ColorSpace", working);
+        image.attributes.emplace_back("lpm:colorspace", working);
         float ch[8];
-        if (chromaticities(canonicalColorSpace(working), ch))
-            spec.attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), ch);
-        spec.attribute("compression", "zip");
+        if (chromaticities(canonicalColorSpace(working), ch)) image.chromaticities.assign(ch, ch + 8);
     }
-    auto writer = OIIO::ImageOutput::create(out.tempPath());
-    if (!writer)
-        throw OutputError("render", "cannot create an image writer for '" + out.finalPath() + "': " + OIIO::geterror());
-    if (!writer->open(out.tempPath(), spec) || !writer->write_image(OIIO::TypeDesc::FLOAT, img.data()) ||
-        !writer->close()) {
+    image.rgb = std::move(img);
+    try {
+        encodeImageWithHelper(out.tempPath(), out.finalPath(), image);
+    } catch (const std::runtime_error& e) {
         const std::string why = out.failureReason();
-        throw OutputError("render",
-                          "cannot write '" + out.finalPath() + "': " + (why.empty() ? writer->geterror() : why));
+        throw OutputError("render", why.empty() ? e.what() : "cannot write '" + out.finalPath() + "': " + why);
     }
     out.commit();
 }

@@ -1,0 +1,26 @@
+// lpmbake's way to image files: it runs the helper lpmbake-image (image_helper_main.cpp),
+// which links OpenImageIO, and exchanges pixels with it through anonymous in-memory files
+// (image_protocol.h). lpmbake itself never loads OpenImageIO: that library and the ~260
+// it needs take 0.3 s to load and 95 MiB of resident memory (its string table and the
+// relocations of its dependencies) that a bake would carry through its solve.
+// docs/image_helper.md has the reasons and the measurements.
+#pragma once
+
+#include <string>
+
+#include "vdb_io/image_codec.h"
+
+namespace lpm {
+
+/// The helper's path: $LPMBAKE_IMAGE_HELPER if set, else lpmbake-image beside the running
+/// executable, in ../libexec/lpmbake from it, or in the build tree this was compiled in.
+/// Throws std::runtime_error listing where it looked.
+std::string imageHelperPath();
+
+/// decodeImageFile / encodeImageFile (image_codec.h) in the helper process. Throw
+/// std::runtime_error with the helper's one-line message, or saying why the helper
+/// could not run or died.
+DecodedImage decodeImageWithHelper(const std::string& path);
+void encodeImageWithHelper(const std::string& writePath, const std::string& shownPath, const ImageToEncode& image);
+
+}  // namespace lpm
