@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
 #include "baker/bake_metadata.h"
@@ -175,22 +176,31 @@ VolumeInput readVolumeStage(const BakeOptions& o, BakeSummary& sum, const Log& l
     return vol;
 }
 
-/// 2. The environment: read and converted, or the sequence's copy when the same file and
-/// options were read for an earlier frame.
-std::shared_ptr<EnvInput> readEnvironmentStage(const BakeOptions& o, BakeContext* context, BakeSummary& sum,
-                                               const Log& log) {
+/// What identifies a converted environment: the file and every option applied to it.
+std::string envKey(const BakeOptions& o) {
+    return o.env + "\n" + o.envColorSpace + "\n" + o.workingSpace + "\n" + fmtExact(o.envRotateDeg) + "\n" +
+           fmtExact(o.envScale) + "\n" + upAxisName(o.upAxis) + "\n" + std::to_string(o.sanitize);
+}
+
+/// True when the sequence's copy of the environment serves this bake.
+bool envReusable(const BakeOptions& o, const BakeContext* context) {
+    return context && context->env && context->envKey == envKey(o);
+}
+
+/// 2. The environment: converted from the image `decode` started reading, or the
+/// sequence's copy when the same file and options were read for an earlier frame.
+std::shared_ptr<EnvInput> readEnvironmentStage(const BakeOptions& o, BakeContext* context, ImageDecode* decode,
+                                               BakeSummary& sum, const Log& log) {
     const auto t = Clock::now();
     auto envHeld = std::make_shared<EnvInput>();
     if (o.env.empty()) return envHeld;
-    const std::string key = o.env + "\n" + o.envColorSpace + "\n" + o.workingSpace + "\n" + fmtExact(o.envRotateDeg) +
-                            "\n" + fmtExact(o.envScale) + "\n" + upAxisName(o.upAxis) + "\n" +
-                            std::to_string(o.sanitize);
-    if (context && context->env && context->envKey == key) {
+    if (envReusable(o, context)) {
         sum.envReused = true;
         sum.secondsEnv = since(t);
         return context->env;
     }
-    *envHeld = readEnvironment(envReadOptions(o));
+    const std::string key = envKey(o);
+    *envHeld = decode ? readEnvironment(envReadOptions(o), *decode) : readEnvironment(envReadOptions(o));
     for (const auto& w : envHeld->warnings) log.warn(w);
     log.debug("environment " + o.env + ": " + std::to_string(envHeld->width) + "x" + std::to_string(envHeld->height) +
               ", " + envHeld->colorSpace + " -> " + envHeld->workingSpace);
@@ -380,8 +390,13 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
         // Fail on an impossible output path before the expensive work.
         AtomicOutput probe(o.output, {o.input, o.env});
     }
+    // The environment's image is decoded by a helper process (OpenImageIO, 0.3 s to load)
+    // while this one reads the volume.
+    std::optional<ImageDecode> envDecode;
+    if (!o.env.empty() && !envReusable(o, context)) envDecode.emplace(o.env);
     VolumeInput vol = readVolumeStage(o, sum, log);
-    const std::shared_ptr<EnvInput> env = readEnvironmentStage(o, context, sum, log);
+    const std::shared_ptr<EnvInput> env =
+        readEnvironmentStage(o, context, envDecode ? &*envDecode : nullptr, sum, log);
     Lights lights;
     lights.env = env->env.get();
     for (const auto& s : o.suns) lights.suns.push_back(toSun(s));

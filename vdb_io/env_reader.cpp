@@ -3,6 +3,8 @@
 
 #include <cmath>
 #include <cstdint>
+#include <stdexcept>
+#include <utility>
 
 #include "vdb_io/color.h"
 #include "vdb_io/image_helper.h"
@@ -14,11 +16,14 @@ namespace {
 const char* kComp = "env";
 }
 
-std::vector<float> readRgbImage(const std::string& path, int& width, int& height, int& channels,
+namespace {
+
+/// The helper's decoded image, its errors as InputError.
+std::vector<float> takeRgbImage(ImageDecode& decode, int& width, int& height, int& channels,
                                 std::string& fileColorSpace, std::vector<std::string>& warnings) {
     DecodedImage img;
     try {
-        img = decodeImageWithHelper(path);
+        img = decode.wait();
     } catch (const std::runtime_error& e) {
         throw InputError(kComp, e.what());
     }
@@ -30,6 +35,14 @@ std::vector<float> readRgbImage(const std::string& path, int& width, int& height
     return std::move(img.rgb);
 }
 
+}  // namespace
+
+std::vector<float> readRgbImage(const std::string& path, int& width, int& height, int& channels,
+                                std::string& fileColorSpace, std::vector<std::string>& warnings) {
+    ImageDecode decode(path);
+    return takeRgbImage(decode, width, height, channels, fileColorSpace, warnings);
+}
+
 void EnvReadOptions::validate() const {
     if (!(scale >= 0) || !std::isfinite(scale))
         throw SettingError(kComp, "scale", "must be finite and non-negative, got " + std::to_string(scale));
@@ -38,9 +51,15 @@ void EnvReadOptions::validate() const {
 
 EnvInput readEnvironment(const EnvReadOptions& o) {
     o.validate();
+    ImageDecode decode(o.path);
+    return readEnvironment(o, decode);
+}
+
+EnvInput readEnvironment(const EnvReadOptions& o, ImageDecode& decode) {
+    o.validate();
     EnvInput out;
     std::string fileSpace;
-    std::vector<float> rgb = readRgbImage(o.path, out.width, out.height, out.fileChannels, fileSpace, out.warnings);
+    std::vector<float> rgb = takeRgbImage(decode, out.width, out.height, out.fileChannels, fileSpace, out.warnings);
 
     // NaN/Inf first: they are a property of the pixels whatever the layout.
     std::uint64_t bad = 0;

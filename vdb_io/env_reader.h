@@ -9,6 +9,7 @@
 
 #include "core/envmap.h"
 #include "vdb_io/image_codec.h"  // kMaxEnvPixels
+#include "vdb_io/image_helper.h"
 
 namespace lpm {
 
@@ -36,6 +37,10 @@ struct EnvInput {
 
 /// Throws InputError naming the file and the problem (size, channels, NaN count, colour space).
 EnvInput readEnvironment(const EnvReadOptions& options);
+
+/// The same for an image whose decoding `decode` started earlier (image_helper.h) from
+/// options.path, so that OpenImageIO loads in the helper while the caller reads the volume.
+EnvInput readEnvironment(const EnvReadOptions& options, ImageDecode& decode);
 
 /// The most pixels an environment image may have (32768 x 16384); larger ones are refused.
 

@@ -53,11 +53,9 @@ private:
     int fd_;
 };
 
-/// Runs `helper args...` with the three files as its stdin, stdout and stderr (-1: /dev/null)
-/// and waits for it. Throws if it cannot start, dies of a signal or exits non-zero (with
-/// its stderr as the message).
-void runHelper(const std::vector<std::string>& args, int in, int out, const MemoryFile& err) {
-    const std::string helper = imageHelperPath();
+/// Starts `helper args...` with the three files as its stdin, stdout and stderr (-1:
+/// /dev/null). Throws if it cannot start.
+pid_t spawnHelper(const std::string& helper, const std::vector<std::string>& args, int in, int out, int err) {
     std::vector<char*> argv;
     argv.push_back(const_cast<char*>(helper.c_str()));
     for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
@@ -68,11 +66,17 @@ void runHelper(const std::vector<std::string>& args, int in, int out, const Memo
     else posix_spawn_file_actions_addopen(&files, 0, "/dev/null", O_RDONLY, 0);
     if (out >= 0) posix_spawn_file_actions_adddup2(&files, out, 1);
     else posix_spawn_file_actions_addopen(&files, 1, "/dev/null", O_WRONLY, 0);
-    posix_spawn_file_actions_adddup2(&files, err.fd(), 2);
+    posix_spawn_file_actions_adddup2(&files, err, 2);
     pid_t pid = 0;
     const int spawned = posix_spawn(&pid, helper.c_str(), &files, nullptr, argv.data(), environ);
     posix_spawn_file_actions_destroy(&files);
     if (spawned != 0) throw std::runtime_error("cannot run " + helper + ": " + std::strerror(spawned));
+    return pid;
+}
+
+/// Waits for the helper. Throws if it died of a signal or exited non-zero (with its stderr
+/// as the message).
+void waitForHelper(pid_t pid, const std::string& helper, const MemoryFile& err) {
     int status = 0;
     while (::waitpid(pid, &status, 0) < 0)
         if (errno != EINTR) throw std::runtime_error("cannot wait for " + helper + ": " + std::strerror(errno));
@@ -115,18 +119,49 @@ std::string imageHelperPath() {
                              "; set LPMBAKE_IMAGE_HELPER to its path)");
 }
 
-DecodedImage decodeImageWithHelper(const std::string& path) {
-    MemoryFile out("lpmbake-image-out"), err("lpmbake-image-err");
-    runHelper({"decode", path}, -1, out.fd(), err);
-    out.rewind();
-    return readDecodedImage(out.fd());
+struct ImageDecode::Run {
+    MemoryFile out{"lpmbake-image-out"}, err{"lpmbake-image-err"};
+    std::string helper;
+    pid_t pid = -1;
+};
+
+ImageDecode::ImageDecode(const std::string& path) {
+    try {
+        run_ = std::make_unique<Run>();
+        run_->helper = imageHelperPath();
+        run_->pid = spawnHelper(run_->helper, {"decode", path}, -1, run_->out.fd(), run_->err.fd());
+    } catch (const std::runtime_error& e) {
+        startError_ = e.what();
+    }
 }
+
+ImageDecode::~ImageDecode() {
+    if (run_ && run_->pid > 0) {  // never waited for: the bake failed before it needed the image
+        ::kill(run_->pid, SIGTERM);
+        int status = 0;
+        while (::waitpid(run_->pid, &status, 0) < 0 && errno == EINTR) {
+        }
+    }
+}
+
+DecodedImage ImageDecode::wait() {
+    if (!startError_.empty()) throw std::runtime_error(startError_);
+    if (!run_ || run_->pid <= 0) throw std::runtime_error("image helper: wait() called twice");
+    const pid_t pid = run_->pid;
+    run_->pid = -1;
+    waitForHelper(pid, run_->helper, run_->err);
+    run_->out.rewind();
+    return readDecodedImage(run_->out.fd());
+}
+
+DecodedImage decodeImageWithHelper(const std::string& path) { return ImageDecode(path).wait(); }
 
 void encodeImageWithHelper(const std::string& writePath, const std::string& shownPath, const ImageToEncode& image) {
     MemoryFile in("lpmbake-image-in"), err("lpmbake-image-err");
     writeImageToEncode(in.fd(), image);
     in.rewind();
-    runHelper({"encode", writePath, shownPath}, in.fd(), -1, err);
+    const std::string helper = imageHelperPath();
+    waitForHelper(spawnHelper(helper, {"encode", writePath, shownPath}, in.fd(), -1, err.fd()), helper, err);
 }
 
 }  // namespace lpm

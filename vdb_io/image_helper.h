@@ -6,6 +6,7 @@
 // docs/image_helper.md has the reasons and the measurements.
 #pragma once
 
+#include <memory>
 #include <string>
 
 #include "vdb_io/image_codec.h"
@@ -16,6 +17,25 @@ namespace lpm {
 /// executable, in ../libexec/lpmbake from it, or in the build tree this was compiled in.
 /// Throws std::runtime_error listing where it looked.
 std::string imageHelperPath();
+
+/// decodeImageFile (image_codec.h) in a helper process started by the constructor, so the
+/// caller can do other work (read the volume) while OpenImageIO loads and decodes.
+/// Problems starting the helper are reported by wait(), like the helper's own errors.
+/// A helper never waited for is stopped (SIGTERM) and reaped by the destructor.
+class ImageDecode {
+public:
+    explicit ImageDecode(const std::string& path);
+    ~ImageDecode();
+    ImageDecode(const ImageDecode&) = delete;
+    ImageDecode& operator=(const ImageDecode&) = delete;
+    /// The decoded image; throws std::runtime_error as decodeImageWithHelper does. Once.
+    DecodedImage wait();
+
+private:
+    struct Run;
+    std::unique_ptr<Run> run_;
+    std::string startError_;
+};
 
 /// decodeImageFile / encodeImageFile (image_codec.h) in the helper process. Throw
 /// std::runtime_error with the helper's one-line message, or saying why the helper
