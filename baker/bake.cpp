@@ -395,8 +395,7 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
     std::optional<ImageDecode> envDecode;
     if (!o.env.empty() && !envReusable(o, context)) envDecode.emplace(o.env);
     VolumeInput vol = readVolumeStage(o, sum, log);
-    const std::shared_ptr<EnvInput> env =
-        readEnvironmentStage(o, context, envDecode ? &*envDecode : nullptr, sum, log);
+    const std::shared_ptr<EnvInput> env = readEnvironmentStage(o, context, envDecode ? &*envDecode : nullptr, sum, log);
     Lights lights;
     lights.env = env->env.get();
     for (const auto& s : o.suns) lights.suns.push_back(toSun(s));

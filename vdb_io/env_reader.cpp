@@ -19,20 +19,12 @@ const char* kComp = "env";
 namespace {
 
 /// The helper's decoded image, its errors as InputError.
-std::vector<float> takeRgbImage(ImageDecode& decode, int& width, int& height, int& channels,
-                                std::string& fileColorSpace, std::vector<std::string>& warnings) {
-    DecodedImage img;
+DecodedImage waitForImage(ImageDecode& decode) {
     try {
-        img = decode.wait();
+        return decode.wait();
     } catch (const std::runtime_error& e) {
         throw InputError(kComp, e.what());
     }
-    width = img.width;
-    height = img.height;
-    channels = img.fileChannels;
-    fileColorSpace = img.fileColorSpace;
-    warnings.insert(warnings.end(), img.warnings.begin(), img.warnings.end());
-    return std::move(img.rgb);
 }
 
 }  // namespace
@@ -40,7 +32,13 @@ std::vector<float> takeRgbImage(ImageDecode& decode, int& width, int& height, in
 std::vector<float> readRgbImage(const std::string& path, int& width, int& height, int& channels,
                                 std::string& fileColorSpace, std::vector<std::string>& warnings) {
     ImageDecode decode(path);
-    return takeRgbImage(decode, width, height, channels, fileColorSpace, warnings);
+    DecodedImage img = waitForImage(decode);
+    width = img.width;
+    height = img.height;
+    channels = img.fileChannels;
+    fileColorSpace = img.fileColorSpace;
+    warnings.insert(warnings.end(), img.warnings.begin(), img.warnings.end());
+    return std::move(img.rgb);
 }
 
 void EnvReadOptions::validate() const {
@@ -57,9 +55,18 @@ EnvInput readEnvironment(const EnvReadOptions& o) {
 
 EnvInput readEnvironment(const EnvReadOptions& o, ImageDecode& decode) {
     o.validate();
+    return environmentFromImage(o, waitForImage(decode));
+}
+
+EnvInput environmentFromImage(const EnvReadOptions& o, DecodedImage image) {
+    o.validate();
     EnvInput out;
-    std::string fileSpace;
-    std::vector<float> rgb = takeRgbImage(decode, out.width, out.height, out.fileChannels, fileSpace, out.warnings);
+    out.width = image.width;
+    out.height = image.height;
+    out.fileChannels = image.fileChannels;
+    out.warnings = std::move(image.warnings);
+    const std::string fileSpace = image.fileColorSpace;
+    std::vector<float> rgb = std::move(image.rgb);
 
     // NaN/Inf first: they are a property of the pixels whatever the layout.
     std::uint64_t bad = 0;

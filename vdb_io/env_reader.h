@@ -42,6 +42,10 @@ EnvInput readEnvironment(const EnvReadOptions& options);
 /// options.path, so that OpenImageIO loads in the helper while the caller reads the volume.
 EnvInput readEnvironment(const EnvReadOptions& options, ImageDecode& decode);
 
+/// What readEnvironment does once the pixels are decoded: NaN policy, colour conversion,
+/// lat-long checks. (Tests that read hundreds of damaged files decode them in process.)
+EnvInput environmentFromImage(const EnvReadOptions& options, DecodedImage image);
+
 /// The most pixels an environment image may have (32768 x 16384); larger ones are refused.
 
 /// Reads an image as packed RGB floats (first 3 channels, grey replicated), top row first,

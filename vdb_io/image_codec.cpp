@@ -56,8 +56,8 @@ DecodedImage decodeImageFile(const std::string& path) {
 void encodeImageFile(const std::string& writePath, const std::string& shownPath, const ImageToEncode& image) {
     if (image.rgb.size() != size_t(image.width) * image.height * 3 || image.width <= 0 || image.height <= 0)
         throw std::runtime_error("cannot write '" + shownPath + "': " + std::to_string(image.rgb.size()) +
-                                 " values for a " + std::to_string(image.width) + "x" +
-                                 std::to_string(image.height) + " RGB image");
+                                 " values for a " + std::to_string(image.width) + "x" + std::to_string(image.height) +
+                                 " RGB image");
     OIIO::ImageSpec spec(image.width, image.height, 3, image.png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::HALF);
     for (const auto& [name, value] : image.attributes) spec.attribute(name, value);
     if (image.chromaticities.size() == 8)

@@ -14,20 +14,20 @@ namespace lpm {
 /// An image as float RGB, interleaved, top row first (OIIO's order).
 struct DecodedImage {
     int width = 0, height = 0;
-    int fileChannels = 0;                ///< channels in the file (1 and 2 are read as grey)
-    std::string fileColorSpace;          ///< the file's oiio:ColorSpace, "" if it has none
-    std::vector<std::string> warnings;   ///< one line each
-    std::vector<float> rgb;              ///< width * height * 3
+    int fileChannels = 0;               ///< channels in the file (1 and 2 are read as grey)
+    std::string fileColorSpace;         ///< the file's oiio:ColorSpace, "" if it has none
+    std::vector<std::string> warnings;  ///< one line each
+    std::vector<float> rgb;             ///< width * height * 3
 };
 
 /// What writePreviewImage hands the writer: float RGB (already display-encoded and in
 /// [0, 1] for PNG) and the header attributes.
 struct ImageToEncode {
     int width = 0, height = 0;
-    bool png = false;                    ///< 8-bit PNG; else half-float EXR with zip compression
+    bool png = false;  ///< 8-bit PNG; else half-float EXR with zip compression
     std::vector<std::pair<std::string, std::string>> attributes;  ///< string attributes
-    std::vector<float> chromaticities;   ///< empty or 8 values (EXR only)
-    std::vector<float> rgb;              ///< width * height * 3
+    std::vector<float> chromaticities;                            ///< empty or 8 values (EXR only)
+    std::vector<float> rgb;                                       ///< width * height * 3
 };
 
 /// The largest image decodeImageFile reads or encodeImageFile writes: 2^29 pixels

@@ -116,7 +116,8 @@ void writeImageToEncode(int fd, const ImageToEncode& image) {
     std::ostringstream head;
     head.precision(9);
     head << "png " << (image.png ? 1 : 0) << "\n";
-    for (const auto& [name, value] : image.attributes) head << "attribute " << oneLine(name) << " " << oneLine(value) << "\n";
+    for (const auto& [name, value] : image.attributes)
+        head << "attribute " << oneLine(name) << " " << oneLine(value) << "\n";
     if (!image.chromaticities.empty()) {
         head << "chromaticities";
         for (float c : image.chromaticities) head << " " << c;
@@ -139,9 +140,9 @@ ImageToEncode readImageToEncode(int fd) {
             std::istringstream in(value);
             float c = 0.f;
             while (in >> c) image.chromaticities.push_back(c);
-            if (image.chromaticities.size() != 8) throw std::runtime_error("image stream: chromaticities need 8 values");
-        } else
-            throw std::runtime_error("image stream: unknown header line '" + key + "'");
+            if (image.chromaticities.size() != 8)
+                throw std::runtime_error("image stream: chromaticities need 8 values");
+        } else throw std::runtime_error("image stream: unknown header line '" + key + "'");
     });
     image.rgb = readFloats(fd, count, image.width, image.height);
     return image;

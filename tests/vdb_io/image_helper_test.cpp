@@ -1,0 +1,155 @@
+// vdb_io/image_helper: images read and written in the helper process lpmbake-image come
+// out exactly as the in-process codec makes them; every way the helper can fail (missing,
+// failing, killed, never waited for) is one line and leaves no process behind.
+#include "vdb_io/image_helper.h"
+
+#include <sys/stat.h>
+#include <sys/wait.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <stdexcept>
+
+#include <gtest/gtest.h>
+
+#include "test_helpers.h"
+#include "vdb_io/image_codec.h"
+
+using namespace lpm;
+using lpmtest::dataPath;
+
+namespace {
+
+/// Same pixels and header; the warnings, which name the file, only when both are one file.
+void expectSameImage(const DecodedImage& a, const DecodedImage& b, bool sameFile = true) {
+    EXPECT_EQ(a.width, b.width);
+    EXPECT_EQ(a.height, b.height);
+    EXPECT_EQ(a.fileChannels, b.fileChannels);
+    EXPECT_EQ(a.fileColorSpace, b.fileColorSpace);
+    if (sameFile) {
+        EXPECT_EQ(a.warnings, b.warnings);
+    }
+    EXPECT_EQ(a.warnings.size(), b.warnings.size());
+    ASSERT_EQ(a.rgb.size(), b.rgb.size());
+    EXPECT_EQ(std::memcmp(a.rgb.data(), b.rgb.data(), a.rgb.size() * sizeof(float)), 0);
+}
+
+/// LPMBAKE_IMAGE_HELPER set for one scope.
+struct HelperOverride {
+    explicit HelperOverride(const std::string& path) { ::setenv("LPMBAKE_IMAGE_HELPER", path.c_str(), 1); }
+    ~HelperOverride() { ::unsetenv("LPMBAKE_IMAGE_HELPER"); }
+};
+
+std::string script(const std::string& name, const std::string& body) {
+    const std::string path = lpmtest::scratchDir() + "/" + name;
+    lpmtest::writeBytes(path, "#!/bin/sh\n" + body + "\n");
+    ::chmod(path.c_str(), 0755);
+    return path;
+}
+
+std::string decodeError(const std::string& path) {
+    try {
+        (void)decodeImageWithHelper(path);
+    } catch (const std::runtime_error& e) {
+        return e.what();
+    }
+    ADD_FAILURE() << "decoded " << path;
+    return "";
+}
+
+}  // namespace
+
+TEST(ImageHelper, FoundWithoutBeingToldWhere) {
+    ::unsetenv("LPMBAKE_IMAGE_HELPER");
+    const std::filesystem::path p = imageHelperPath();
+    EXPECT_EQ(p.filename(), "lpmbake-image");
+    EXPECT_TRUE(std::filesystem::is_regular_file(p));
+}
+
+TEST(ImageHelper, DecodesExactlyAsTheCodecInProcess) {
+    const std::string grey = lpmtest::scratchDir() + "/grey2.exr";
+    {
+        ImageToEncode g;  // a 2-channel file: grey + alpha, read as grey with a warning
+        g.width = 4;
+        g.height = 2;
+        g.rgb.assign(4 * 2 * 3, 0.25f);
+        encodeImageFile(grey, grey, g);
+    }
+    for (const std::string& path : {dataPath("env/rooftop_small.hdr"), dataPath("env/OrientationLatLong.exr"),
+                                    dataPath("env/BrightRingsNanInf.exr"), grey}) {
+        SCOPED_TRACE(path);
+        expectSameImage(decodeImageWithHelper(path), decodeImageFile(path));
+    }
+    // A damaged file: the same message either way.
+    const std::string cut = lpmtest::scratchDir() + "/cut.exr";
+    lpmtest::writeBytes(cut, lpmtest::readBytes(dataPath("env/OrientationLatLong.exr")).substr(0, 400));
+    std::string inProcess;
+    try {
+        (void)decodeImageFile(cut);
+    } catch (const std::runtime_error& e) {
+        inProcess = e.what();
+    }
+    EXPECT_FALSE(inProcess.empty());
+    EXPECT_EQ(decodeError(cut), inProcess);
+}
+
+TEST(ImageHelper, EncodesExactlyAsTheCodecInProcess) {
+    const std::string dir = lpmtest::scratchDir();
+    for (const bool png : {false, true}) {
+        ImageToEncode img;
+        img.width = 16;
+        img.height = 8;
+        img.png = png;
+        img.attributes = {{"Software", "lpmbake test"}, {"oiio:ColorSpace", png ? "sRGB" : "ACEScg"}};
+        if (!png) img.chromaticities = {0.713f, 0.293f, 0.165f, 0.830f, 0.128f, 0.044f, 0.32168f, 0.33767f};
+        for (int i = 0; i < 16 * 8 * 3; ++i) img.rgb.push_back(float(i % 97) / 96.f);
+        const std::string ext = png ? ".png" : ".exr";
+        encodeImageWithHelper(dir + "/helper" + ext, "shown" + ext, img);
+        encodeImageFile(dir + "/direct" + ext, "shown" + ext, img);
+        EXPECT_EQ(lpmtest::readBytes(dir + "/helper" + ext), lpmtest::readBytes(dir + "/direct" + ext)) << ext;
+        expectSameImage(decodeImageFile(dir + "/helper" + ext), decodeImageFile(dir + "/direct" + ext), false);
+    }
+}
+
+TEST(ImageHelper, EveryFailureIsOneLine) {
+    const std::string missing = lpmtest::scratchDir() + "/no such.exr";
+    const std::string why = decodeError(missing);
+    EXPECT_NE(why.find("cannot read image '" + missing + "'"), std::string::npos) << why;
+    EXPECT_EQ(why.find('\n'), std::string::npos) << why;
+    {
+        HelperOverride h("/nonexistent/lpmbake-image");
+        const std::string w = decodeError(missing);
+        EXPECT_NE(w.find("cannot run /nonexistent/lpmbake-image"), std::string::npos) << w;
+    }
+    {
+        HelperOverride h(script("fails.sh", "exit 4"));
+        const std::string w = decodeError(missing);
+        EXPECT_NE(w.find("failed with exit code 4"), std::string::npos) << w;
+    }
+    {
+        HelperOverride h(script("says.sh", "echo \"first\" >&2; echo \"second\" >&2; exit 1"));
+        EXPECT_EQ(decodeError(missing), "first second");
+    }
+    {
+        HelperOverride h(script("killed.sh", "kill -SEGV $$"));
+        const std::string w = decodeError(missing);
+        EXPECT_NE(w.find("died of signal 11"), std::string::npos) << w;
+    }
+    {
+        HelperOverride h(script("garbage.sh", "echo not an image"));
+        const std::string w = decodeError(missing);
+        EXPECT_NE(w.find("not an lpmbake-image stream"), std::string::npos) << w;
+    }
+}
+
+TEST(ImageHelper, ADecodeNeverWaitedForIsStoppedAndReaped) {
+    HelperOverride h(script("slow.sh", "exec sleep 60"));
+    const auto t0 = std::chrono::steady_clock::now();
+    { ImageDecode pending(dataPath("env/rooftop_small.hdr")); }
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30));
+    EXPECT_EQ(::waitpid(-1, nullptr, WNOHANG), -1);  // no child left, not even a zombie
+    EXPECT_EQ(errno, ECHILD);
+}
