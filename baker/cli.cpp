@@ -161,6 +161,8 @@ EXIT STATUS
 ENVIRONMENT
   OCIO                 OpenColorIO config to use instead of the shipped config.ocio
   SLURM_CPUS_PER_TASK  default for --threads
+  LPMBAKE_IMAGE_HELPER the image reader/writer lpmbake runs (default: lpmbake-image
+                       beside lpmbake or in ../libexec/lpmbake)
 
 OUTPUT
   The output appears atomically: it is written to .NAME.lpmtmp-PID.EXT in the output
