@@ -4,8 +4,8 @@
 # one of them a thick cumulus at albedo 0.99 where GMRES runs), each a separate process
 # so peak RSS is its own.
 #   scripts/bench/scale.sh [--quick] [--large] [--mantaflow] [--threads N] [--original PATH-TO-AN-OLDER-lpmbake]
-# --large adds the 8M cloud and the 50M-active-voxel cloud in a 1024^3 box (about 10
-# minutes and 9 GB here). --mantaflow adds the ~1M-active-voxel Mantaflow smoke (Blender,
+# --large adds the 8M cloud (g = 0 and g = 0.6) and the 50M-active-voxel cloud in a
+# 1024^3 box (about 12 minutes and 9 GB here). --mantaflow adds the ~1M-active-voxel Mantaflow smoke (Blender,
 # headless, resolution 224, frame 60: about 12 minutes to simulate once, then kept).
 # --only NAME runs that scene alone.
 # Prints a markdown table; volumes and bakes go to out/bench/scale/.
@@ -45,6 +45,9 @@ if [ "$mantaflow" = 1 ]; then
 fi
 if [ "$large" = 1 ]; then
   scenes+=("cloud-8M|cloud --res 322|--albedo 0.9 --density-scale 0.04")
+  # The same cloud at g = 0.6 (SH order 2): memory per active voxel of an anisotropic bake
+  # at 8x plume-1M's size.
+  scenes+=("cloud-8M-g0.6|cloud --res 322|--albedo 0.9 --density-scale 0.04 --g 0.6")
   scenes+=("cloud-50M-in-1024^3|cloud --res 585 --box 1024|--albedo 0.9 --density-scale 0.022")
 fi
 

@@ -3,7 +3,9 @@
 # the 1- and 2-thread bakes interleaved (this machine is shared: the minimum over the
 # repetitions is the least disturbed run; the median is given beside it). Checks that
 # every bake has the same content digest.
-#   scripts/bench/thread_scaling.sh [--reps N] VOLUME.vdb [bake args...]
+#   scripts/bench/thread_scaling.sh [--reps N] [--lpmbake BIN] VOLUME.vdb [bake args...]
+# (--lpmbake: another build's binary, e.g. an earlier commit's, to compare; its digests
+# are taken with that binary too)
 # Prints a markdown table of each run and the speed-ups of solve, total (the bake's own
 # timer, from the stats JSON) and process (the whole lpmbake process, start-up included:
 # since session 30 the environment image's decoder loads in a helper process during the
@@ -11,18 +13,22 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 reps=5
-if [ "${1:-}" = --reps ]; then reps=$2; shift 2; fi
+bin=build/baker/lpmbake
+while [ "${1:-}" = --reps ] || [ "${1:-}" = --lpmbake ]; do
+  if [ "$1" = --reps ]; then reps=$2; else bin=$2; fi
+  shift 2
+done
 vdb=${1:?usage: thread_scaling.sh [--reps N] VOLUME.vdb [bake args...]}; shift
-[ -x build/baker/lpmbake ] || bash scripts/build.sh >/dev/null
+[ "$bin" != build/baker/lpmbake ] || [ -x "$bin" ] || bash scripts/build.sh >/dev/null
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 for ((i = 1; i <= reps; ++i)); do
   for t in 1 2; do
     t0=$(date +%s%N)
-    build/baker/lpmbake "$vdb" "$@" --threads "$t" --stats "$out/$t.$i.json" -o "$out/$t.$i.vdb" 2>/dev/null
+    "$bin" "$vdb" "$@" --threads "$t" --stats "$out/$t.$i.json" -o "$out/$t.$i.vdb" 2>/dev/null
     t1=$(date +%s%N)
     echo $((t1 - t0)) > "$out/$t.$i.process"  # ns
-    build/baker/lpmbake info --digest "$out/$t.$i.vdb" > "$out/$t.$i.digest"
+    "$bin" info --digest "$out/$t.$i.vdb" > "$out/$t.$i.digest"
     rm -f "$out/$t.$i.vdb"
   done
 done
