@@ -2,6 +2,7 @@
 #include "vdb_io/image_helper.h"
 
 #include <fcntl.h>
+#include <pthread.h>
 #include <spawn.h>
 #include <sys/mman.h>
 #include <sys/wait.h>
@@ -156,12 +157,87 @@ DecodedImage ImageDecode::wait() {
 
 DecodedImage decodeImageWithHelper(const std::string& path) { return ImageDecode(path).wait(); }
 
+namespace {
+
+/// Writes the image into the pipe with SIGPIPE held back, so a helper that died makes the
+/// write fail (EPIPE) instead of killing lpmbake; a SIGPIPE left pending is taken.
+void writeIntoPipe(int fd, const ImageToEncode& image) {
+    sigset_t pipeSignal, old;
+    sigemptyset(&pipeSignal);
+    sigaddset(&pipeSignal, SIGPIPE);
+    pthread_sigmask(SIG_BLOCK, &pipeSignal, &old);
+    std::string failure;
+    try {
+        writeImageToEncode(fd, image);
+    } catch (const std::runtime_error& e) {
+        failure = e.what();
+        const timespec now{0, 0};
+        while (sigtimedwait(&pipeSignal, nullptr, &now) == SIGPIPE) {
+        }
+    }
+    pthread_sigmask(SIG_SETMASK, &old, nullptr);
+    if (!failure.empty()) throw std::runtime_error(failure);
+}
+
+}  // namespace
+
+struct ImageEncode::Run {
+    MemoryFile err{"lpmbake-image-err"};
+    std::string helper;
+    int pipeWrite = -1;
+    pid_t pid = -1;
+};
+
+ImageEncode::ImageEncode(const std::string& writePath, const std::string& shownPath) {
+    try {
+        run_ = std::make_unique<Run>();
+        run_->helper = imageHelperPath();
+        int fds[2];
+        if (::pipe2(fds, O_CLOEXEC) != 0)
+            throw std::runtime_error(std::string("cannot make a pipe: ") + std::strerror(errno));
+        run_->pipeWrite = fds[1];
+        try {
+            run_->pid = spawnHelper(run_->helper, {"encode", writePath, shownPath}, fds[0], -1, run_->err.fd());
+        } catch (...) {
+            ::close(fds[0]);
+            throw;
+        }
+        ::close(fds[0]);
+    } catch (const std::runtime_error& e) {
+        startError_ = e.what();
+    }
+}
+
+ImageEncode::~ImageEncode() {
+    if (!run_) return;
+    if (run_->pipeWrite >= 0) ::close(run_->pipeWrite);  // the helper reads a short stream and fails
+    if (run_->pid > 0) {                                 // never finished: the render failed first
+        ::kill(run_->pid, SIGTERM);
+        int status = 0;
+        while (::waitpid(run_->pid, &status, 0) < 0 && errno == EINTR) {
+        }
+    }
+}
+
+void ImageEncode::finish(const ImageToEncode& image) {
+    if (!startError_.empty()) throw std::runtime_error(startError_);
+    if (!run_ || run_->pid <= 0) throw std::runtime_error("image helper: finish() called twice");
+    std::string writeFailure;
+    try {
+        writeIntoPipe(run_->pipeWrite, image);
+    } catch (const std::runtime_error& e) {
+        writeFailure = e.what();
+    }
+    ::close(run_->pipeWrite);
+    run_->pipeWrite = -1;
+    const pid_t pid = run_->pid;
+    run_->pid = -1;
+    waitForHelper(pid, run_->helper, run_->err);  // the helper's own failure explains a broken pipe best
+    if (!writeFailure.empty()) throw std::runtime_error(writeFailure);
+}
+
 void encodeImageWithHelper(const std::string& writePath, const std::string& shownPath, const ImageToEncode& image) {
-    MemoryFile in("lpmbake-image-in"), err("lpmbake-image-err");
-    writeImageToEncode(in.fd(), image);
-    in.rewind();
-    const std::string helper = imageHelperPath();
-    waitForHelper(spawnHelper(helper, {"encode", writePath, shownPath}, in.fd(), -1, err.fd()), helper, err);
+    ImageEncode(writePath, shownPath).finish(image);
 }
 
 }  // namespace lpm

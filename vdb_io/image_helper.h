@@ -1,9 +1,9 @@
 // lpmbake's way to image files: it runs the helper lpmbake-image (image_helper_main.cpp),
-// which links OpenImageIO, and exchanges pixels with it through anonymous in-memory files
-// (image_protocol.h). lpmbake itself never loads OpenImageIO: that library and the ~260
-// it needs take 0.3 s to load and 95 MiB of resident memory (its string table and the
-// relocations of its dependencies) that a bake would carry through its solve.
-// docs/image_helper.md has the reasons and the measurements.
+// which links OpenImageIO, and exchanges pixels with it through an anonymous in-memory file
+// (a decoded image) or a pipe (an image to write) (image_protocol.h). lpmbake itself never loads OpenImageIO: that
+// library and the ~260 it needs take 0.3 s to load and 95 MiB of resident memory (its string table and the relocations
+// of its dependencies) that a bake would carry through its solve. docs/image_helper.md has the reasons and the
+// measurements.
 #pragma once
 
 #include <memory>
@@ -30,6 +30,24 @@ public:
     ImageDecode& operator=(const ImageDecode&) = delete;
     /// The decoded image; throws std::runtime_error as decodeImageWithHelper does. Once.
     DecodedImage wait();
+
+private:
+    struct Run;
+    std::unique_ptr<Run> run_;
+    std::string startError_;
+};
+
+/// encodeImageFile (image_codec.h) in a helper process started by the constructor and fed
+/// through a pipe by finish(), so OpenImageIO loads while the caller renders. Problems
+/// starting it are reported by finish(). A helper never finished is stopped and reaped.
+class ImageEncode {
+public:
+    ImageEncode(const std::string& writePath, const std::string& shownPath);
+    ~ImageEncode();
+    ImageEncode(const ImageEncode&) = delete;
+    ImageEncode& operator=(const ImageEncode&) = delete;
+    /// Sends the image and waits for the file to be written; throws std::runtime_error. Once.
+    void finish(const ImageToEncode& image);
 
 private:
     struct Run;

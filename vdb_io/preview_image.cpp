@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
+#include <utility>
 
 #include "vdb_io/color.h"
 #include "vdb_io/image_helper.h"
@@ -43,6 +44,12 @@ std::string previewImageEncoding(const std::string& path, const std::string& wor
 }
 
 void writePreviewImage(AtomicOutput& out, std::vector<float> img, int width, int height, const std::string& working) {
+    ImageEncode encode(out.tempPath(), out.finalPath());
+    writePreviewImage(out, encode, std::move(img), width, height, working);
+}
+
+void writePreviewImage(AtomicOutput& out, ImageEncode& encode, std::vector<float> img, int width, int height,
+                       const std::string& working) {
     ImageToEncode image;
     image.width = width;
     image.height = height;
@@ -60,7 +67,7 @@ void writePreviewImage(AtomicOutput& out, std::vector<float> img, int width, int
     }
     image.rgb = std::move(img);
     try {
-        encodeImageWithHelper(out.tempPath(), out.finalPath(), image);
+        encode.finish(image);
     } catch (const std::runtime_error& e) {
         const std::string why = out.failureReason();
         throw OutputError("render", why.empty() ? e.what() : "cannot write '" + out.finalPath() + "': " + why);

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "vdb_io/atomic_file.h"
+#include "vdb_io/image_helper.h"
 
 namespace lpm {
 
@@ -18,6 +19,11 @@ std::string previewImageEncoding(const std::string& path, const std::string& wor
 /// Writes `rgb` ([pixel][rgb], row 0 at the top) through `out` and commits it. The format
 /// follows the final path's extension. Throws OutputError.
 void writePreviewImage(AtomicOutput& out, std::vector<float> rgb, int width, int height,
+                       const std::string& workingSpace);
+
+/// The same through an encoder started earlier for out.tempPath() (image_helper.h), whose
+/// OpenImageIO has loaded while the caller rendered.
+void writePreviewImage(AtomicOutput& out, ImageEncode& encode, std::vector<float> rgb, int width, int height,
                        const std::string& workingSpace);
 
 }  // namespace lpm

@@ -79,7 +79,8 @@ TEST(ImageHelper, DecodesExactlyAsTheCodecInProcess) {
         encodeImageFile(grey, grey, g);
     }
     for (const std::string& path : {dataPath("env/rooftop_small.hdr"), dataPath("env/OrientationLatLong.exr"),
-                                    dataPath("env/BrightRingsNanInf.exr"), grey}) {
+                                    dataPath("env/BrightRingsNanInf.exr"), grey})
+    {
         SCOPED_TRACE(path);
         expectSameImage(decodeImageWithHelper(path), decodeImageFile(path));
     }
@@ -148,8 +149,49 @@ TEST(ImageHelper, EveryFailureIsOneLine) {
 TEST(ImageHelper, ADecodeNeverWaitedForIsStoppedAndReaped) {
     HelperOverride h(script("slow.sh", "exec sleep 60"));
     const auto t0 = std::chrono::steady_clock::now();
-    { ImageDecode pending(dataPath("env/rooftop_small.hdr")); }
+    {
+        ImageDecode pending(dataPath("env/rooftop_small.hdr"));
+    }
     EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30));
     EXPECT_EQ(::waitpid(-1, nullptr, WNOHANG), -1);  // no child left, not even a zombie
+    EXPECT_EQ(errno, ECHILD);
+}
+
+// A helper that dies without reading the image: lpmbake gets its message, not SIGPIPE.
+TEST(ImageHelper, AnEncoderThatDiesEarlyIsOneLineNotSigpipe) {
+    ImageToEncode img;
+    img.width = 256;  // 768 KiB: far more than a pipe holds
+    img.height = 256;
+    img.rgb.assign(256 * 256 * 3, 0.5f);
+    const std::string out = lpmtest::scratchDir() + "/never.exr";
+    auto encodeError = [&] {
+        try {
+            encodeImageWithHelper(out, out, img);
+        } catch (const std::runtime_error& e) {
+            return std::string(e.what());
+        }
+        ADD_FAILURE() << "encoded";
+        return std::string();
+    };
+    {
+        HelperOverride h(script("refuses.sh", "echo \"cannot write here\" >&2; exit 3"));
+        EXPECT_EQ(encodeError(), "cannot write here");
+    }
+    {
+        HelperOverride h(script("crashes.sh", "kill -SEGV $$"));
+        const std::string w = encodeError();
+        EXPECT_NE(w.find("died of signal 11"), std::string::npos) << w;
+    }
+    EXPECT_FALSE(std::filesystem::exists(out));
+}
+
+TEST(ImageHelper, AnEncodeNeverFinishedIsStoppedAndReaped) {
+    HelperOverride h(script("slow_encoder.sh", "exec sleep 60"));
+    const auto t0 = std::chrono::steady_clock::now();
+    {
+        ImageEncode pending(lpmtest::scratchDir() + "/x.png", "x.png");
+    }
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30));
+    EXPECT_EQ(::waitpid(-1, nullptr, WNOHANG), -1);
     EXPECT_EQ(errno, ECHILD);
 }

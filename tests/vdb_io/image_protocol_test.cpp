@@ -22,7 +22,9 @@ struct Stream {
     int fd = ::memfd_create("image_protocol_test", MFD_CLOEXEC);
     ~Stream() { ::close(fd); }
     void rewind() const { ::lseek(fd, 0, SEEK_SET); }
-    void write(const std::string& bytes) const { ASSERT_EQ(::write(fd, bytes.data(), bytes.size()), ssize_t(bytes.size())); }
+    void write(const std::string& bytes) const {
+        ASSERT_EQ(::write(fd, bytes.data(), bytes.size()), ssize_t(bytes.size()));
+    }
 };
 
 /// Every float class a decoder can meet: NaN (with a payload), infinities, denormals, -0.
