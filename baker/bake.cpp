@@ -390,8 +390,8 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
         // Fail on an impossible output path before the expensive work.
         AtomicOutput probe(o.output, {o.input, o.env});
     }
-    // The environment's image is decoded by a helper process (OpenImageIO, 0.3 s to load)
-    // while this one reads the volume.
+    // The environment's image is decoded by a helper process (OpenImageIO: about 0.45 s to
+    // load, docs/image_helper.md) while this one reads the volume.
     std::optional<ImageDecode> envDecode;
     if (!o.env.empty() && !envReusable(o, context)) envDecode.emplace(o.env);
     VolumeInput vol = readVolumeStage(o, sum, log);

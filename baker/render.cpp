@@ -77,7 +77,8 @@ void runRender(const RenderOptions& o, const Log& log) {
     checkRenderOptions(o);
     ThreadLimit limit(o.threads);
     AtomicOutput out(o.output, {o.bake, o.env});
-    // The image helpers load OpenImageIO (0.4 s each) while this process reads and renders.
+    // The image helpers load OpenImageIO (about 0.45 s each) while this process reads the
+    // bake and renders.
     std::optional<ImageDecode> envDecode;
     if (!o.env.empty()) envDecode.emplace(o.env);
     ImageEncode encode(out.tempPath(), out.finalPath());

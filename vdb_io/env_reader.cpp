@@ -13,10 +13,8 @@
 namespace lpm {
 
 namespace {
-const char* kComp = "env";
-}
 
-namespace {
+const char* kComp = "env";
 
 /// The helper's decoded image, its errors as InputError.
 DecodedImage waitForImage(ImageDecode& decode) {

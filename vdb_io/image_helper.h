@@ -1,9 +1,9 @@
 // lpmbake's way to image files: it runs the helper lpmbake-image (image_helper_main.cpp),
-// which links OpenImageIO, and exchanges pixels with it through an anonymous in-memory file
-// (a decoded image) or a pipe (an image to write) (image_protocol.h). lpmbake itself never loads OpenImageIO: that
-// library and the ~260 it needs take 0.3 s to load and 95 MiB of resident memory (its string table and the relocations
-// of its dependencies) that a bake would carry through its solve. docs/image_helper.md has the reasons and the
-// measurements.
+// which links OpenImageIO, and exchanges pixels with it through an anonymous in-memory
+// file (a decoded image) or a pipe (an image to write) (image_protocol.h). lpmbake itself
+// never loads OpenImageIO: that library and the ~260 it needs take 0.42-0.54 s to load
+// and 95 MiB of resident memory (its string table, the relocations of its dependencies)
+// that a bake would carry through its solve. docs/image_helper.md has the measurements.
 #pragma once
 
 #include <memory>
