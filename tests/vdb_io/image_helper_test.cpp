@@ -104,7 +104,11 @@ TEST(ImageHelper, EncodesExactlyAsTheCodecInProcess) {
         img.width = 16;
         img.height = 8;
         img.png = png;
-        img.attributes = {{"Software", "lpmbake test"}, {"oiio:ColorSpace", png ? "sRGB" : "ACEScg"}};
+        // A fixed DateTime: without one the EXR writer stamps the second it writes, and the
+        // two writes here can fall in different seconds.
+        img.attributes = {{"Software", "lpmbake test"},
+                          {"oiio:ColorSpace", png ? "sRGB" : "ACEScg"},
+                          {"DateTime", "2026:12:05 10:00:00"}};
         if (!png) img.chromaticities = {0.713f, 0.293f, 0.165f, 0.830f, 0.128f, 0.044f, 0.32168f, 0.33767f};
         for (int i = 0; i < 16 * 8 * 3; ++i) img.rgb.push_back(float(i % 97) / 96.f);
         const std::string ext = png ? ".png" : ".exr";
