@@ -3,6 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
+
+#include "core/parallel.h"
 
 namespace lpm {
 
@@ -69,15 +72,29 @@ EnvBinning binEnvironment(const EnvMap& env, const CubeQuadrature& quad, const M
         }
         out.hotSuns = mergeHotPixels(hot, env.width());
     }
+    // Sub-pixel rows in blocks of kRowsPerBlock, each block summed on its own over the
+    // threads, the blocks' sums added in block order: the same bins for any thread count.
+    constexpr int kRowsPerBlock = 16;
+    const int rows = env.height() * sub;
+    const int blocks = (rows + kRowsPerBlock - 1) / kRowsPerBlock;
+    std::vector<double> blockAcc(size_t(blocks) * size_t(nd) * 4, 0.0);
+    parallelForChunks(size_t(blocks), 1, [&](size_t bb, size_t be) {
+        for (size_t b = bb; b < be; ++b) {
+            double* acc = &blockAcc[b * size_t(nd) * 4];
+            const int y0 = int(b) * kRowsPerBlock;
+            env.forEachSubPixelInRows(
+                sub, y0, y0 + kRowsPerBlock,
+                [&](const Vec3& toward, double omega, const RGB& L) {
+                    const int i = quad.indexOf(Rinv * (-toward));
+                    for (int c = 0; c < 3; ++c) acc[size_t(i) * 4 + c] += L[c] * omega;
+                    acc[size_t(i) * 4 + 3] += omega;
+                },
+                skip.empty() ? nullptr : &skip);
+        }
+    });
     std::vector<double> acc(size_t(nd) * 4, 0.0);
-    env.forEachSubPixel(
-        sub,
-        [&](const Vec3& toward, double omega, const RGB& L) {
-            const int i = quad.indexOf(Rinv * (-toward));
-            for (int c = 0; c < 3; ++c) acc[size_t(i) * 4 + c] += L[c] * omega;
-            acc[size_t(i) * 4 + 3] += omega;
-        },
-        skip.empty() ? nullptr : &skip);
+    for (int b = 0; b < blocks; ++b)
+        for (size_t k = 0; k < acc.size(); ++k) acc[k] += blockAcc[size_t(b) * acc.size() + k];
     for (int i = 0; i < nd; ++i) {
         const double om = acc[size_t(i) * 4 + 3];
         for (int c = 0; c < 3; ++c) out.radiance[i][c] = om > 0 ? float(acc[size_t(i) * 4 + c] / om) : 0.0f;

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "core/parallel.h"
 
 namespace lpm {
 
@@ -28,37 +29,63 @@ EnvMap::EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDeg
     const Mat3 upTurn = up == UpAxis::Z ? Mat3::rotation({1, 0, 0}, kPi / 2) : Mat3::identity();
     rot_ = upTurn * spin;
     rotInv_ = rot_.transposed();
-    for (RGB& p : pixels_) {
-        for (int c = 0; c < 3; ++c) {
-            if (!std::isfinite(p[c]) || p[c] < 0)
-                throw Error("EnvMap", "pixel value " + std::to_string(p[c]) + " is not a finite non-negative radiance");
+    // Each row checked, scaled and summed (mean RGB x solid angle, left to right) on its
+    // own, over the threads; the marginal over rows after, in row order.
+    const size_t H = size_t(height_), W = size_t(width_);
+    std::vector<double> rowSum(H, 0.0);
+    std::vector<float> rowMax(H, 0.f), rowBad(H, 0.f);
+    std::vector<unsigned char> rowHasBad(H, 0);
+    parallelForChunks(H, 8, [&](size_t yb, size_t ye) {
+        for (size_t y = yb; y < ye; ++y) {
+            const double omega = pixelSolidAngle(int(y));
+            double sum = 0;
+            float most = 0;
+            for (RGB* p = &pixels_[y * W]; p != &pixels_[y * W] + W; ++p) {
+                for (int c = 0; c < 3; ++c)
+                    if ((!std::isfinite((*p)[c]) || (*p)[c] < 0) && !rowHasBad[y]) {
+                        rowHasBad[y] = 1;
+                        rowBad[y] = (*p)[c];
+                    }
+                *p = *p * scale;
+                most = std::max(most, p->maxComponent());
+                sum += double(p->average()) * omega;
+            }
+            rowSum[y] = sum;
+            rowMax[y] = most;
         }
-        p = p * scale;
-        maxValue_ = std::max(maxValue_, p.maxComponent());
-    }
-    // Sampling tables (double precision; sums are small).
-    rowCdf_.assign(height_ + 1, 0.0);
-    colCdf_.assign(size_t(height_) * (width_ + 1), 0.0);
-    pixelPdf_.assign(size_t(width_) * height_, 0.0);
-    std::vector<double> rowSum(height_, 0.0);
-    const double dPhi = 2 * kPi / width_;
-    for (int y = 0; y < height_; ++y) {
-        const double omega = dPhi * (std::cos(rowTheta(y, height_)) - std::cos(rowTheta(y + 1, height_)));
-        double* cdf = &colCdf_[size_t(y) * (width_ + 1)];
-        for (int x = 0; x < width_; ++x) {
-            const double w = double(pixel(x, y).average()) * omega;
-            cdf[x + 1] = cdf[x] + w;
-        }
-        rowSum[y] = cdf[width_];
+    });
+    for (size_t y = 0; y < H; ++y)
+        if (rowHasBad[y])
+            throw Error("EnvMap",
+                        "pixel value " + std::to_string(rowBad[y]) + " is not a finite non-negative radiance");
+    rowCdf_.assign(H + 1, 0.0);
+    for (size_t y = 0; y < H; ++y) {
         rowCdf_[y + 1] = rowCdf_[y] + rowSum[y];
+        maxValue_ = std::max(maxValue_, rowMax[y]);
     }
-    total_ = rowCdf_[height_];
-    if (total_ > 0) {
-        for (int y = 0; y < height_; ++y) {
-            const double* cdf = &colCdf_[size_t(y) * (width_ + 1)];
-            for (int x = 0; x < width_; ++x) pixelPdf_[size_t(y) * width_ + x] = (cdf[x + 1] - cdf[x]) / total_;
+    total_ = rowCdf_[H];
+}
+
+double EnvMap::pixelSolidAngle(int y) const {
+    return (2 * kPi / width_) * (std::cos(rowTheta(y, height_)) - std::cos(rowTheta(y + 1, height_)));
+}
+
+const std::vector<double>& EnvMap::columnCdf() const {
+    std::shared_ptr<const std::vector<double>> have = std::atomic_load(&colCdf_);
+    if (have) return *have;
+    const size_t W = size_t(width_);
+    auto cdfs = std::make_shared<std::vector<double>>(size_t(height_) * (W + 1), 0.0);
+    parallelForChunks(size_t(height_), 8, [&](size_t yb, size_t ye) {
+        for (size_t y = yb; y < ye; ++y) {
+            const double omega = pixelSolidAngle(int(y));
+            double* cdf = &(*cdfs)[y * (W + 1)];
+            for (size_t x = 0; x < W; ++x) cdf[x + 1] = cdf[x] + double(pixels_[y * W + x].average()) * omega;
         }
-    }
+    });
+    std::shared_ptr<const std::vector<double>> built = std::move(cdfs);
+    // The first table stored is kept (a reference to it may already be in use).
+    if (!std::atomic_compare_exchange_strong(&colCdf_, &have, built)) return *have;
+    return *built;
 }
 
 EnvMap EnvMap::constant(const RGB& radiance) { return EnvMap(2, 1, {radiance, radiance}); }
@@ -101,8 +128,8 @@ double EnvMap::pdf(const Vec3& towardLight) const {
     if (total_ <= 0) return 0;
     int px, py;
     pixelOf(towardLight, px, py);
-    const double omega = (2 * kPi / width_) * (std::cos(rowTheta(py, height_)) - std::cos(rowTheta(py + 1, height_)));
-    return pixelPdf_[size_t(py) * width_ + px] / omega;
+    const double* cdf = &columnCdf()[size_t(py) * (width_ + 1)];
+    return (cdf[px + 1] - cdf[px]) / total_ / pixelSolidAngle(py);
 }
 
 RGB EnvMap::sample(double u1, double u2, Vec3& towardLight, double& pdfOut) const {
@@ -120,7 +147,7 @@ RGB EnvMap::sample(double u1, double u2, Vec3& towardLight, double& pdfOut) cons
     const double fy = std::clamp((t1 - rowCdf_[y]) / rowMass, 0.0, 1.0);
     // Column, reusing the remainder of u1 would correlate; use u2 for the column and
     // split the fractional part of the row sample for the in-pixel position.
-    const double* cdf = &colCdf_[size_t(y) * (width_ + 1)];
+    const double* cdf = &columnCdf()[size_t(y) * (width_ + 1)];
     const double t2 = u2 * cdf[width_];
     int x = int(std::upper_bound(cdf, cdf + width_ + 1, t2) - cdf) - 1;
     x = std::clamp(x, 0, width_ - 1);
@@ -134,49 +161,43 @@ RGB EnvMap::sample(double u1, double u2, Vec3& towardLight, double& pdfOut) cons
     const double u = (x + fx) / width_;
     towardLight = toWorld(dirFromUTheta(u, theta));
     const double omega = (2 * kPi / width_) * (c0 - c1);
-    pdfOut = pixelPdf_[size_t(y) * width_ + x] / omega;
+    pdfOut = (cdf[x + 1] - cdf[x]) / total_ / omega;
     return pixel(x, y);
 }
 
 std::vector<EnvHotPixel> EnvMap::hotPixels(double minShare, int maxCount) const {
     std::vector<EnvHotPixel> hot;
     if (total_ <= 0 || maxCount <= 0) return hot;
-    const double dPhi = 2 * kPi / width_;
-    for (int y = 0; y < height_; ++y)
-        for (int x = 0; x < width_; ++x) {
-            const double share = pixelPdf_[size_t(y) * width_ + x];
-            if (!(share >= minShare)) continue;
-            const double c0 = std::cos(rowTheta(y, height_)), c1 = std::cos(rowTheta(y + 1, height_));
-            EnvHotPixel h;
-            h.x = x;
-            h.y = y;
-            h.omega = dPhi * (c0 - c1);
-            h.toward = toWorld(dirFromUTheta((x + 0.5) / width_, std::acos(0.5 * (c0 + c1))));
-            h.radiance = pixel(x, y);
-            h.share = share;
-            hot.push_back(h);
+    // A pixel's share is its step of its row's cumulative sum (as sample() draws it),
+    // recomputed here row by row over the threads; the rows' finds joined in row order.
+    const size_t H = size_t(height_), W = size_t(width_);
+    std::vector<std::vector<EnvHotPixel>> rowHot(H);
+    parallelForChunks(H, 8, [&](size_t yb, size_t ye) {
+        for (size_t y = yb; y < ye; ++y) {
+            const double omega = pixelSolidAngle(int(y));
+            double cdf = 0;
+            for (size_t x = 0; x < W; ++x) {
+                const double next = cdf + double(pixels_[y * W + x].average()) * omega;
+                const double share = (next - cdf) / total_;
+                cdf = next;
+                if (!(share >= minShare)) continue;
+                const double c0 = std::cos(rowTheta(int(y), height_)), c1 = std::cos(rowTheta(int(y) + 1, height_));
+                EnvHotPixel h;
+                h.x = int(x);
+                h.y = int(y);
+                h.omega = omega;
+                h.toward = toWorld(dirFromUTheta((double(x) + 0.5) / width_, std::acos(0.5 * (c0 + c1))));
+                h.radiance = pixels_[y * W + x];
+                h.share = share;
+                rowHot[y].push_back(h);
+            }
         }
+    });
+    for (auto& r : rowHot) hot.insert(hot.end(), r.begin(), r.end());
     std::stable_sort(hot.begin(), hot.end(),
                      [](const EnvHotPixel& a, const EnvHotPixel& b) { return a.share > b.share; });
     if (hot.size() > size_t(maxCount)) hot.resize(size_t(maxCount));
     return hot;
-}
-
-void EnvMap::forEachSubPixel(int sub, const std::function<void(const Vec3&, double, const RGB&)>& f,
-                             const std::vector<unsigned char>* skip) const {
-    sub = std::max(1, sub);
-    const int W = width_ * sub, H = height_ * sub;
-    const double dPhi = 2 * kPi / W;
-    for (int y = 0; y < H; ++y) {
-        const double t0 = rowTheta(y, H), t1 = rowTheta(y + 1, H);
-        const double omega = dPhi * (std::cos(t0) - std::cos(t1));
-        const double tc = std::acos(0.5 * (std::cos(t0) + std::cos(t1)));
-        for (int x = 0; x < W; ++x) {
-            static const RGB black(0.f);
-            const RGB& L = skip && (*skip)[size_t(y / sub) * width_ + x / sub] ? black : pixel(x / sub, y / sub);
-            f(toWorld(dirFromUTheta((x + 0.5) / W, tc)), omega, L);
-        }
-    }
 }
 
 }  // namespace lpm

@@ -11,7 +11,9 @@
 // sky's zenith is world +Z and the image centre (longitude 0) faces world -Y.
 #pragma once
 
-#include <functional>
+#include <algorithm>
+#include <cmath>
+#include <memory>
 #include <vector>
 
 #include "core/math.h"
@@ -60,12 +62,13 @@ public:
     double pdf(const Vec3& towardLight) const;
 
     /// Partitions the sphere into width*sub x height*sub sub-pixels and calls
-    /// f(direction toward light (world), solid angle, radiance) for each. The solid
-    /// angles sum to 4 pi exactly (up to rounding).
-    /// Pixels with skip[y * width + x] != 0 are reported black when `skip` is given.
-    void forEachSubPixel(int sub, const std::function<void(const Vec3&, double, const RGB&)>& f,
-                         const std::vector<unsigned char>* skip = nullptr) const;
-
+    /// f(direction toward light (world), solid angle, radiance) for each sub-pixel of the
+    /// sub-pixel rows [y0, y1), row by row, left to right. Over all rows the solid angles
+    /// sum to 4 pi exactly (up to rounding). Pixels with skip[y * width + x] != 0 are
+    /// reported black when `skip` is given. Rows are independent: callers split them
+    /// over threads.
+    template <class F>
+    void forEachSubPixelInRows(int sub, int y0, int y1, F&& f, const std::vector<unsigned char>* skip = nullptr) const;
     /// Pixels holding at least `minShare` of the map's power each, largest first, at
     /// most `maxCount`.
     std::vector<EnvHotPixel> hotPixels(double minShare, int maxCount) const;
@@ -77,18 +80,50 @@ public:
 
 private:
     void pixelOf(const Vec3& towardLight, int& px, int& py) const;
+    /// Solid angle of a pixel of row y.
+    double pixelSolidAngle(int y) const;
+    /// Per-row cumulative sums of mean RGB x solid angle (height x (width + 1)), for
+    /// sample(): built on its first call (a bake never samples; an 8192 x 4096 map's table
+    /// is 268 MB), then kept; concurrent first calls build it alike and keep one.
+    const std::vector<double>& columnCdf() const;
     Vec3 toWorld(const Vec3& imageDir) const { return rot_ * imageDir; }
     Vec3 toImage(const Vec3& worldDir) const { return rotInv_ * worldDir; }
 
     int width_, height_;
     std::vector<RGB> pixels_;
     Mat3 rot_, rotInv_;
-    // Sampling tables: marginal over rows, conditional over columns per row.
-    std::vector<double> rowCdf_;    // height+1
-    std::vector<double> colCdf_;    // height*(width+1)
-    std::vector<double> pixelPdf_;  // probability of each pixel
+    // Sampling: the marginal over rows, and (columnCdf) the conditional over columns per row.
+    std::vector<double> rowCdf_;  // height+1
+    mutable std::shared_ptr<const std::vector<double>> colCdf_;
     double total_ = 0;
     float maxValue_ = 0;
 };
+
+template <class F>
+void EnvMap::forEachSubPixelInRows(int sub, int y0, int y1, F&& f, const std::vector<unsigned char>* skip) const {
+    sub = std::max(1, sub);
+    const int W = width_ * sub, H = height_ * sub;
+    const double dPhi = 2 * kPi / W;
+    static const RGB black(0.f);
+    std::vector<double> sinLon(static_cast<size_t>(W)), cosLon(static_cast<size_t>(W));  // each column centre
+    for (int x = 0; x < W; ++x) {
+        const double lon = kPi - 2 * kPi * ((x + 0.5) / W);
+        sinLon[size_t(x)] = std::sin(lon);
+        cosLon[size_t(x)] = std::cos(lon);
+    }
+    for (int y = std::max(0, y0); y < std::min(y1, H); ++y) {
+        // Polar angles of the row's edges from +Y; the centre splits its solid angle in two.
+        const double c0 = std::cos(y * kPi / H), c1 = std::cos((y + 1) * kPi / H);
+        const double omega = dPhi * (c0 - c1);
+        const double tc = std::acos(0.5 * (c0 + c1));
+        const double s = std::sin(tc), c = std::cos(tc);
+        const RGB* row = &pixels_[size_t(y / sub) * width_];
+        const unsigned char* skipRow = skip ? &(*skip)[size_t(y / sub) * width_] : nullptr;
+        for (int x = 0; x < W; ++x) {
+            const RGB& L = skipRow && skipRow[x / sub] ? black : row[x / sub];
+            f(rot_ * Vec3(s * sinLon[size_t(x)], c, s * cosLon[size_t(x)]), omega, L);
+        }
+    }
+}
 
 }  // namespace lpm

@@ -3,9 +3,12 @@
 
 #include <cmath>
 #include <cstdint>
+#include <numeric>
 #include <stdexcept>
 #include <utility>
 
+#include "core/malloc_policy.h"
+#include "core/parallel.h"
 #include "vdb_io/color.h"
 #include "vdb_io/image_helper.h"
 #include "vdb_io/io_error.h"
@@ -15,6 +18,47 @@ namespace lpm {
 namespace {
 
 const char* kComp = "env";
+
+constexpr size_t kChunk = size_t(1) << 16;  // values per parallel chunk
+
+/// Counts the non-finite values of rgb and, with `zero`, sets them to 0 (over the threads).
+std::uint64_t nonFinite(std::vector<float>& rgb, bool zero) {
+    std::vector<std::uint64_t> bad((rgb.size() + kChunk - 1) / kChunk, 0);
+    parallelForChunks(rgb.size(), kChunk, [&](size_t b, size_t e) {
+        std::uint64_t n = 0;
+        for (size_t i = b; i < e; ++i)
+            if (!std::isfinite(rgb[i])) {
+                ++n;
+                if (zero) rgb[i] = 0.f;
+            }
+        bad[b / kChunk] = n;
+    });
+    return std::accumulate(bad.begin(), bad.end(), std::uint64_t(0));
+}
+
+/// rgb as pixels, negative values clamped to 0 and counted in `negatives` (radiance
+/// cannot be negative; files hold them, and conversions out of gamut make them).
+std::vector<RGB> clampedPixels(const std::vector<float>& rgb, std::uint64_t& negatives) {
+    std::vector<RGB> pixels;
+    assignZeroed(pixels, rgb.size() / 3);  // on huge pages: an 8K map's pixels are 400 MB
+    std::vector<std::uint64_t> clamped((pixels.size() + kChunk - 1) / kChunk, 0);
+    parallelForChunks(pixels.size(), kChunk, [&](size_t b, size_t e) {
+        std::uint64_t n = 0;
+        for (size_t p = b; p < e; ++p)
+            for (int c = 0; c < 3; ++c) {
+                float v = rgb[p * 3 + c];
+                if (!std::isfinite(v)) v = 0.f;  // a conversion cannot make NaN from finite input, but be safe
+                if (v < 0) {
+                    v = 0;
+                    ++n;
+                }
+                pixels[p][c] = v;
+            }
+        clamped[b / kChunk] = n;
+    });
+    negatives = std::accumulate(clamped.begin(), clamped.end(), std::uint64_t(0));
+    return pixels;
+}
 
 /// The helper's decoded image, its errors as InputError.
 DecodedImage waitForImage(ImageDecode& decode) {
@@ -67,12 +111,7 @@ EnvInput environmentFromImage(const EnvReadOptions& o, DecodedImage image) {
     std::vector<float> rgb = std::move(image.rgb);
 
     // NaN/Inf first: they are a property of the pixels whatever the layout.
-    std::uint64_t bad = 0;
-    for (float& v : rgb)
-        if (!std::isfinite(v)) {
-            ++bad;
-            if (o.sanitize) v = 0.f;
-        }
+    const std::uint64_t bad = nonFinite(rgb, o.sanitize);
     if (bad && !o.sanitize)
         throw InputError(kComp, "'" + o.path + "' has " + std::to_string(bad) +
                                     " NaN or infinite pixel value(s); pass --sanitize to set them to 0");
@@ -100,19 +139,8 @@ EnvInput environmentFromImage(const EnvReadOptions& o, DecodedImage image) {
     out.workingSpace = canonicalColorSpace(o.workingSpace);
     convertColor(rgb, out.colorSpace, out.workingSpace);
 
-    // Negative values are legal in files and appear when converting out-of-gamut colours;
-    // radiance cannot be negative, so clamp them (counted, reported).
-    std::vector<RGB> pixels(size_t(out.width) * out.height);
-    for (size_t p = 0; p < pixels.size(); ++p)
-        for (int c = 0; c < 3; ++c) {
-            float v = rgb[p * 3 + c];
-            if (!std::isfinite(v)) v = 0.f;  // a conversion cannot make NaN from finite input, but be safe
-            if (v < 0) {
-                v = 0;
-                ++out.negativeClamped;
-            }
-            pixels[p][c] = v;
-        }
+    std::vector<RGB> pixels = clampedPixels(rgb, out.negativeClamped);
+    std::vector<float>().swap(rgb);  // before the map's constructor: one copy of the image at a time
     if (out.negativeClamped)
         out.warnings.push_back("'" + o.path + "': " + std::to_string(out.negativeClamped) +
                                " negative pixel value(s) (in the file or outside the working gamut) clamped to 0");

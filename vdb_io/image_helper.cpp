@@ -16,6 +16,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "core/malloc_policy.h"
 #include "vdb_io/image_protocol.h"
 
 extern char** environ;
@@ -152,7 +153,9 @@ DecodedImage ImageDecode::wait() {
     run_->pid = -1;
     waitForHelper(pid, run_->helper, run_->err);
     run_->out.rewind();
-    return readDecodedImage(run_->out.fd());
+    DecodedImage image = readDecodedImage(run_->out.fd(), &assignZeroed<float>);
+    run_.reset();  // the in-memory file's pages (the image again) go now, not with this object
+    return image;
 }
 
 DecodedImage decodeImageWithHelper(const std::string& path) { return ImageDecode(path).wait(); }

@@ -79,12 +79,14 @@ void writeSizeAndFloats(int fd, std::ostringstream& head, int width, int height,
 
 /// The float block after the header: exactly width * height * 3 values of an image within
 /// kMaxEnvPixels.
-std::vector<float> readFloats(int fd, size_t count, int width, int height) {
+std::vector<float> readFloats(int fd, size_t count, int width, int height, FloatStorage storage = nullptr) {
     if (width <= 0 || height <= 0 || std::int64_t(width) * height > kMaxEnvPixels ||
         count != size_t(width) * size_t(height) * 3)
         throw std::runtime_error("image stream: " + std::to_string(count) + " floats for a " + std::to_string(width) +
                                  "x" + std::to_string(height) + " RGB image");
-    std::vector<float> rgb(count);
+    std::vector<float> rgb;
+    if (storage) storage(rgb, count);
+    else rgb.resize(count);
     readAll(fd, rgb.data(), count * sizeof(float));
     return rgb;
 }
@@ -98,7 +100,7 @@ void writeDecodedImage(int fd, const DecodedImage& image) {
     writeSizeAndFloats(fd, head, image.width, image.height, image.rgb);
 }
 
-DecodedImage readDecodedImage(int fd) {
+DecodedImage readDecodedImage(int fd, FloatStorage storage) {
     DecodedImage image;
     const size_t count = readHeader(fd, [&](const std::string& key, const std::string& value) {
         if (key == "width") image.width = std::stoi(value);
@@ -108,7 +110,7 @@ DecodedImage readDecodedImage(int fd) {
         else if (key == "warning") image.warnings.push_back(value);
         else throw std::runtime_error("image stream: unknown header line '" + key + "'");
     });
-    image.rgb = readFloats(fd, count, image.width, image.height);
+    image.rgb = readFloats(fd, count, image.width, image.height, storage);
     return image;
 }
 

@@ -12,6 +12,9 @@
 // same build of the same machine, so the floats need no byte-order conversion.
 #pragma once
 
+#include <cstddef>
+#include <vector>
+
 #include "vdb_io/image_codec.h"
 
 namespace lpm {
@@ -19,7 +22,11 @@ namespace lpm {
 /// Write to / read from a file descriptor. Reading throws std::runtime_error naming what is
 /// missing or malformed; writing throws on a short write.
 void writeDecodedImage(int fd, const DecodedImage& image);
-DecodedImage readDecodedImage(int fd);
+/// How the float block's storage is made: `storage(v, n)` sizes v to n values (the block
+/// is then read over them); null: v.resize(n). lpmbake passes assignZeroed
+/// (core/malloc_policy.h): an 8192 x 4096 image is 400 MB, faulted in 4 KiB pages otherwise.
+using FloatStorage = std::vector<float>& (*)(std::vector<float>&, std::size_t);
+DecodedImage readDecodedImage(int fd, FloatStorage storage = nullptr);
 void writeImageToEncode(int fd, const ImageToEncode& image);
 ImageToEncode readImageToEncode(int fd);
 

@@ -1,10 +1,14 @@
 // Environment binning and the solver's precomputation cache (core/env_binning.h,
 // core/lpm_cache.h).
+#include <algorithm>
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 #include "core/env_binning.h"
 #include "core/lpm_cache.h"
 #include "core/lpm_solver.h"
+#include "core/parallel.h"
 #include "test_scenes.h"
 
 using namespace lpm;
@@ -112,4 +116,38 @@ TEST(LpmCache, ComputesOnceAndSolvesIdentically) {
     s.cache->forgetEnvironments();
     solveLpm(m, lights, s);
     EXPECT_EQ(s.cache->envBinningsComputed(), 2);
+}
+
+TEST(EnvBinning, SameBinsForAnyThreadCountAndAsOneSerialSum) {
+    // A 512x256 map of uneven radiance: its rows are binned in blocks over the threads.
+    std::vector<RGB> px;
+    for (int y = 0; y < 256; ++y)
+        for (int x = 0; x < 512; ++x)
+            px.push_back(RGB(float((x * 7 + y * 3) % 101) + 0.25f, float((x ^ y) % 17), float(y % 5) + 1.0f));
+    const EnvMap env(512, 256, px, 33.0);
+    const CubeQuadrature q(6);
+    const Mat3 R = Mat3::rotation({0.3, 1, 0.2}, 0.4);
+    EnvBinning one, two;
+    {
+        ThreadLimit limit(1);
+        one = binEnvironment(env, q, R, 0.0);
+    }
+    {
+        ThreadLimit limit(2);
+        two = binEnvironment(env, q, R, 0.0);
+    }
+    // The same sub-pixels summed in one serial pass (sub-pixel rule of binEnvironment).
+    const int sub = std::clamp(int(std::ceil(std::sqrt(1024.0 * q.count() / (512.0 * 256)))), 1, 256);
+    std::vector<double> acc(size_t(q.count()) * 4, 0.0);
+    env.forEachSubPixelInRows(sub, 0, 256 * sub, [&](const Vec3& toward, double omega, const RGB& L) {
+        const int i = q.indexOf(R * (-toward));
+        for (int c = 0; c < 3; ++c) acc[size_t(i) * 4 + c] += L[c] * omega;
+        acc[size_t(i) * 4 + 3] += omega;
+    });
+    for (int i = 0; i < q.count(); ++i)
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_EQ(one.radiance[i][c], two.radiance[i][c]) << i;
+            const double serial = acc[size_t(i) * 4 + c] / acc[size_t(i) * 4 + 3];
+            EXPECT_NEAR(one.radiance[i][c], serial, 1e-6 * serial + 1e-7) << i;
+        }
 }

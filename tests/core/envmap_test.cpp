@@ -1,6 +1,9 @@
 // Lat-long environment: ImfEnvmap orientation, rotation, sampling density, sub-pixels.
 #include "core/envmap.h"
 
+#include <thread>
+#include <vector>
+
 #include <gtest/gtest.h>
 
 #include "core/error.h"
@@ -42,7 +45,7 @@ TEST(EnvMap, RotationAboutY) {
 TEST(EnvMap, SubPixelsCoverTheSphere) {
     const EnvMap m = codedMap();
     double total = 0, weighted = 0;
-    m.forEachSubPixel(3, [&](const Vec3& d, double w, const RGB& L) {
+    m.forEachSubPixelInRows(3, 0, 3 * m.height(), [&](const Vec3& d, double w, const RGB& L) {
         EXPECT_NEAR(length(d), 1.0, 1e-9);
         EXPECT_EQ(m.lookup(d).r, L.r);
         EXPECT_EQ(m.lookup(d).g, L.g);
@@ -71,7 +74,7 @@ TEST(EnvMap, SamplingPdfMatchesLookupAndIntegratesToOne) {
     EXPECT_NEAR(est / m.integral(), 1.0, 1e-6);  // pdf proportional to L: zero variance
     // pdf integrates to 1 over the sphere.
     double total = 0;
-    m.forEachSubPixel(4, [&](const Vec3& d, double w, const RGB&) { total += m.pdf(d) * w; });
+    m.forEachSubPixelInRows(4, 0, 4 * m.height(), [&](const Vec3& d, double w, const RGB&) { total += m.pdf(d) * w; });
     EXPECT_NEAR(total, 1.0, 1e-9);
 }
 
@@ -114,4 +117,62 @@ TEST(EnvMap, UpAxisZTurnsTheZenithToPlusZ) {
     const Vec3 w = upAxisToWorld(UpAxis::Z, img);
     EXPECT_EQ(m.lookup(w).r, EnvMap(8, 4, px).lookup(img).r);
     EXPECT_EQ(m.lookup(w).g, EnvMap(8, 4, px).lookup(img).g);
+}
+
+TEST(EnvMap, SubPixelRowsAreIndependent) {
+    // Any split of the rows visits the same sub-pixels with the same values, in order.
+    const EnvMap m = codedMap(20.0);
+    std::vector<double> whole, split;
+    auto into = [](std::vector<double>& v) {
+        return [&v](const Vec3& d, double w, const RGB& L) {
+            v.insert(v.end(), {d.x, d.y, d.z, w, double(L.r), double(L.g)});
+        };
+    };
+    m.forEachSubPixelInRows(3, 0, 12, into(whole));
+    m.forEachSubPixelInRows(3, 0, 5, into(split));
+    m.forEachSubPixelInRows(3, 5, 7, into(split));
+    m.forEachSubPixelInRows(3, 7, 99, into(split));  // rows past the last are none
+    ASSERT_EQ(whole.size(), size_t(24 * 12 * 6));
+    EXPECT_EQ(whole, split);
+}
+
+TEST(EnvMap, SamplingTableBuiltOnceWhateverTheThreads) {
+    // The column table is built on the first sample(): threads sampling a fresh map at once
+    // get exactly what one thread gets from another fresh map.
+    std::vector<RGB> px;
+    for (int i = 0; i < 256 * 128; ++i) px.push_back(RGB(float(i % 97) + 0.5f, float(i % 13), 1.0f));
+    const EnvMap alone(256, 128, px, 10.0), shared(256, 128, px, 10.0);
+    auto draws = [](const EnvMap& m, std::uint64_t seed) {
+        Pcg32 rng(seed, 3);
+        std::vector<double> out;
+        for (int i = 0; i < 2000; ++i) {
+            Vec3 d;
+            double pdf = 0;
+            const RGB L = m.sample(rng.uniform(), rng.uniform(), d, pdf);
+            out.insert(out.end(), {d.x, d.y, d.z, pdf, double(L.r), m.pdf(d)});
+        }
+        return out;
+    };
+    std::vector<std::vector<double>> got(4);
+    std::vector<std::thread> threads;
+    for (int t = 0; t < 4; ++t) threads.emplace_back([&, t] { got[size_t(t)] = draws(shared, std::uint64_t(t + 1)); });
+    for (auto& t : threads) t.join();
+    for (int t = 0; t < 4; ++t) EXPECT_EQ(got[size_t(t)], draws(alone, std::uint64_t(t + 1))) << t;
+}
+
+TEST(EnvMap, HotPixelShareIsItsSamplingProbability) {
+    std::vector<RGB> px(64 * 32, RGB(1.0f));
+    px[5 * 64 + 17] = RGB(2e4f);
+    px[20 * 64 + 3] = RGB(9e3f, 1e4f, 1.1e4f);
+    const EnvMap m(64, 32, px);
+    const std::vector<EnvHotPixel> hot = m.hotPixels(0.01, 16);
+    ASSERT_EQ(hot.size(), 2u);
+    EXPECT_EQ(hot[0].x, 17);  // the larger share first
+    EXPECT_EQ(hot[1].y, 20);
+    for (const EnvHotPixel& h : hot) {
+        EXPECT_NEAR(h.share, m.pdf(h.toward) * h.omega, 1e-12);
+        EXPECT_EQ(h.radiance.r, m.pixel(h.x, h.y).r);
+    }
+    EXPECT_EQ(m.hotPixels(0.01, 1).size(), 1u);
+    EXPECT_TRUE(m.hotPixels(0.9, 16).empty());
 }

@@ -326,3 +326,24 @@ TEST(EnvReader, OptionsNameTheFieldOutOfRange) {
     o.rotateYDeg = NAN;
     EXPECT_THROW(o.validate(), SettingError);
 }
+
+TEST(EnvReader, NonFiniteAndNegativeValuesCountedInEveryChunk) {
+    // 512 x 256 pixels: the checks run in chunks over the threads; every chunk's finds count.
+    DecodedImage image;
+    image.width = 512;
+    image.height = 256;
+    image.fileChannels = 3;
+    image.rgb.assign(size_t(512) * 256 * 3, 0.5f);
+    const std::vector<size_t> nan = {0, 70000, 200001, 393215}, negative = {5, 131072, 300000, 393214};
+    for (size_t i : nan) image.rgb[i] = i % 2 ? INFINITY : NAN;
+    for (size_t i : negative) image.rgb[i] = -2.0f;
+    EnvReadOptions o = identity("counted.exr");
+    expectThrowWith<InputError>([&] { environmentFromImage(o, image); }, {"counted.exr", "4 NaN or infinite"});
+    o.sanitize = true;
+    const EnvInput e = environmentFromImage(o, image);
+    EXPECT_EQ(e.sanitized, 4u);
+    EXPECT_EQ(e.negativeClamped, 4u);
+    for (size_t i : nan) EXPECT_EQ(e.env->pixel(int(i / 3 % 512), int(i / 3 / 512))[int(i % 3)], 0.0f) << i;
+    for (size_t i : negative) EXPECT_EQ(e.env->pixel(int(i / 3 % 512), int(i / 3 / 512))[int(i % 3)], 0.0f) << i;
+    EXPECT_EQ(e.env->pixel(100, 100).g, 0.5f);
+}

@@ -199,3 +199,20 @@ TEST(ImageHelper, AnEncodeNeverFinishedIsStoppedAndReaped) {
     EXPECT_EQ(::waitpid(-1, nullptr, WNOHANG), -1);
     EXPECT_EQ(errno, ECHILD);
 }
+
+TEST(ImageHelper, TheDecodedImagesFileGoesWhenItIsRead) {
+    // The helper's output (the image again, in memory) is closed once read, not kept as
+    // long as the ImageDecode (a bake keeps that to its end): no descriptor stays open.
+    auto openDescriptors = [] {
+        size_t n = 0;
+        for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator("/proc/self/fd")) ++n;
+        return n;
+    };
+    const size_t before = openDescriptors();
+    ImageDecode decode(dataPath("env/rooftop_small.hdr"));
+    EXPECT_GT(openDescriptors(), before);
+    const DecodedImage image = decode.wait();
+    EXPECT_EQ(image.width, 300);
+    EXPECT_EQ(openDescriptors(), before);
+    EXPECT_THROW(decode.wait(), std::runtime_error);  // once
+}
