@@ -6,6 +6,8 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include "core/malloc_policy.h"
+
 namespace lpm {
 
 namespace {
@@ -38,7 +40,8 @@ DecodedImage decodeImageFile(const std::string& path) {
                                "colour space the pixels are in with --env-colorspace");
     const int nread = std::min(img.fileChannels, 3);
     const size_t pixels = size_t(img.width) * img.height;
-    std::vector<float> buf(pixels * nread);
+    std::vector<float> buf;
+    assignZeroed(buf, pixels * nread);  // on huge pages: an 8K map is 400 MB, faulted in 4 KiB pages otherwise
     if (!in->read_image(0, 0, 0, nread, OIIO::TypeDesc::FLOAT, buf.data()))
         throw std::runtime_error("cannot read the pixels of '" + path + "': " + in->geterror());
     in->close();
@@ -47,7 +50,7 @@ DecodedImage decodeImageFile(const std::string& path) {
         return img;
     }
     // Grey (or grey + alpha): replicate the first channel.
-    img.rgb.resize(pixels * 3);
+    assignZeroed(img.rgb, pixels * 3);
     for (size_t p = 0; p < pixels; ++p) img.rgb[p * 3] = img.rgb[p * 3 + 1] = img.rgb[p * 3 + 2] = buf[p * nread];
     if (nread == 2) img.warnings.push_back("'" + path + "' has 2 channels: using the first as grey");
     return img;
