@@ -245,6 +245,20 @@ LpmSettings solveSettings(const BakeOptions& o, BakeContext* context, const Log&
     return settings;
 }
 
+/// 2b. The solve reads the environment only through its binning, which planning makes and
+/// keeps in settings.cache for every medium of the solve (they share one rotation). A
+/// single bake without --verify bins it now and frees the pixels before the solver's
+/// buffers are made: 400 MB of an 8192 x 4096 sky. A sequence keeps them for its next
+/// volume, whose rotation (and so binning) may differ; --verify's Monte Carlo reads them.
+void releaseEnvironmentPixels(const BakeOptions& o, const VolumeInput& vol, const Lights& lights,
+                              const LpmSettings& settings, const BakeContext* context, EnvInput& env, const Log& log) {
+    if (context || !env.env || vol.empty || verifySettings(o).probes > 0) return;
+    planLpm(vol.medium, lights, settings);
+    env.env->releasePixels();
+    log.debug("environment: binned, its pixels (" + fmt(double(env.width) * env.height * 12.0 / (1 << 20)) +
+              " MiB) freed before the solve");
+}
+
 /// 3. The solve (with -v the plan first), or the empty result of an empty volume. Marks
 /// the voxels the bake writes in vol.medium (markWantedS) when the solve keeps directional SH.
 LpmResult solveStage(const BakeOptions& o, VolumeInput& vol, const Lights& lights, const LpmSettings& settings,
@@ -401,6 +415,7 @@ BakeSummary runBake(const BakeOptions& o, const Log& log, BakeContext* context) 
     for (const auto& s : o.suns) lights.suns.push_back(toSun(s));
 
     const LpmSettings settings = solveSettings(o, context, log);
+    releaseEnvironmentPixels(o, vol, lights, settings, context, *env, log);
     LpmResult res = solveStage(o, vol, lights, settings, sum, log);
     if (verifySettings(o).probes > 0 || !res.sunTerms.empty()) res.expandSh();
     verifyStage(o, vol, lights, res, sum, log);

@@ -21,9 +21,25 @@ inline Vec3 dirFromUTheta(double u, double theta) {
 
 Vec3 upAxisToWorld(UpAxis a, const Vec3& d) { return a == UpAxis::Z ? Vec3(d.x, -d.z, d.y) : d; }
 
+namespace {
+std::vector<float> interleaved(const std::vector<RGB>& pixels) {
+    std::vector<float> rgb;
+    rgb.reserve(pixels.size() * 3);
+    for (const RGB& p : pixels) rgb.insert(rgb.end(), {p.r, p.g, p.b});
+    return rgb;
+}
+}  // namespace
+
 EnvMap::EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDegrees, float scale, UpAxis up)
-    : width_(width), height_(height), pixels_(std::move(pixels)) {
-    if (width_ <= 0 || height_ <= 0 || pixels_.size() != size_t(width_) * height_)
+    : EnvMap(width, height,
+             pixels.size() == size_t(std::max(width, 0)) * size_t(std::max(height, 0))
+                 ? interleaved(pixels)
+                 : std::vector<float>(1),  // refused below
+             rotateYDegrees, scale, up) {}
+
+EnvMap::EnvMap(int width, int height, std::vector<float> rgb, double rotateYDegrees, float scale, UpAxis up)
+    : width_(width), height_(height), rgb_(std::move(rgb)) {
+    if (width_ <= 0 || height_ <= 0 || rgb_.size() != size_t(width_) * height_ * 3)
         throw Error("EnvMap", "bad image size " + std::to_string(width_) + "x" + std::to_string(height_));
     const Mat3 spin = Mat3::rotation({0, 1, 0}, rotateYDegrees * kPi / 180.0);
     const Mat3 upTurn = up == UpAxis::Z ? Mat3::rotation({1, 0, 0}, kPi / 2) : Mat3::identity();
@@ -40,15 +56,18 @@ EnvMap::EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDeg
             const double omega = pixelSolidAngle(int(y));
             double sum = 0;
             float most = 0;
-            for (RGB* p = &pixels_[y * W]; p != &pixels_[y * W] + W; ++p) {
+            for (float* v = &rgb_[y * W * 3]; v != &rgb_[y * W * 3] + W * 3; v += 3) {
                 for (int c = 0; c < 3; ++c)
-                    if ((!std::isfinite((*p)[c]) || (*p)[c] < 0) && !rowHasBad[y]) {
+                    if ((!std::isfinite(v[c]) || v[c] < 0) && !rowHasBad[y]) {
                         rowHasBad[y] = 1;
-                        rowBad[y] = (*p)[c];
+                        rowBad[y] = v[c];
                     }
-                *p = *p * scale;
-                most = std::max(most, p->maxComponent());
-                sum += double(p->average()) * omega;
+                const RGB p = RGB(v[0], v[1], v[2]) * scale;
+                v[0] = p.r;
+                v[1] = p.g;
+                v[2] = p.b;
+                most = std::max(most, p.maxComponent());
+                sum += double(p.average()) * omega;
             }
             rowSum[y] = sum;
             rowMax[y] = most;
@@ -66,11 +85,22 @@ EnvMap::EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDeg
     total_ = rowCdf_[H];
 }
 
+void EnvMap::releasePixels() {
+    std::vector<float>().swap(rgb_);
+    colCdf_.reset();
+    released_ = true;
+}
+
+void EnvMap::requirePixels() const {
+    if (released_) throw Error("EnvMap", "the pixels were released after binning; this read needs them");
+}
+
 double EnvMap::pixelSolidAngle(int y) const {
     return (2 * kPi / width_) * (std::cos(rowTheta(y, height_)) - std::cos(rowTheta(y + 1, height_)));
 }
 
 const std::vector<double>& EnvMap::columnCdf() const {
+    requirePixels();
     std::shared_ptr<const std::vector<double>> have = std::atomic_load(&colCdf_);
     if (have) return *have;
     const size_t W = size_t(width_);
@@ -79,7 +109,7 @@ const std::vector<double>& EnvMap::columnCdf() const {
         for (size_t y = yb; y < ye; ++y) {
             const double omega = pixelSolidAngle(int(y));
             double* cdf = &(*cdfs)[y * (W + 1)];
-            for (size_t x = 0; x < W; ++x) cdf[x + 1] = cdf[x] + double(pixels_[y * W + x].average()) * omega;
+            for (size_t x = 0; x < W; ++x) cdf[x + 1] = cdf[x] + double(at(y * W + x).average()) * omega;
         }
     });
     std::shared_ptr<const std::vector<double>> built = std::move(cdfs);
@@ -91,6 +121,7 @@ const std::vector<double>& EnvMap::columnCdf() const {
 EnvMap EnvMap::constant(const RGB& radiance) { return EnvMap(2, 1, {radiance, radiance}); }
 
 void EnvMap::pixelOf(const Vec3& towardLight, int& px, int& py) const {
+    requirePixels();
     const Vec3 d = toImage(towardLight);
     const double len = length(d);
     const double lat = std::asin(std::clamp(d.y / len, -1.0, 1.0));
@@ -166,6 +197,7 @@ RGB EnvMap::sample(double u1, double u2, Vec3& towardLight, double& pdfOut) cons
 }
 
 std::vector<EnvHotPixel> EnvMap::hotPixels(double minShare, int maxCount) const {
+    requirePixels();
     std::vector<EnvHotPixel> hot;
     if (total_ <= 0 || maxCount <= 0) return hot;
     // A pixel's share is its step of its row's cumulative sum (as sample() draws it),
@@ -177,7 +209,7 @@ std::vector<EnvHotPixel> EnvMap::hotPixels(double minShare, int maxCount) const 
             const double omega = pixelSolidAngle(int(y));
             double cdf = 0;
             for (size_t x = 0; x < W; ++x) {
-                const double next = cdf + double(pixels_[y * W + x].average()) * omega;
+                const double next = cdf + double(at(y * W + x).average()) * omega;
                 const double share = (next - cdf) / total_;
                 cdf = next;
                 if (!(share >= minShare)) continue;
@@ -187,7 +219,7 @@ std::vector<EnvHotPixel> EnvMap::hotPixels(double minShare, int maxCount) const 
                 h.y = int(y);
                 h.omega = omega;
                 h.toward = toWorld(dirFromUTheta((double(x) + 0.5) / width_, std::acos(0.5 * (c0 + c1))));
-                h.radiance = pixels_[y * W + x];
+                h.radiance = at(y * W + x);
                 h.share = share;
                 rowHot[y].push_back(h);
             }

@@ -43,11 +43,18 @@ class EnvMap {
 public:
     EnvMap(int width, int height, std::vector<RGB> pixels, double rotateYDegrees = 0.0, float scale = 1.0f,
            UpAxis up = UpAxis::Y);
+    /// The same from interleaved RGB floats (width x height x 3, rows top to bottom), kept
+    /// as the map's pixels: a decoded file's values need no second copy (400 MB at 8K).
+    EnvMap(int width, int height, std::vector<float> rgb, double rotateYDegrees = 0.0, float scale = 1.0f,
+           UpAxis up = UpAxis::Y);
     static EnvMap constant(const RGB& radiance);
 
     int width() const { return width_; }
     int height() const { return height_; }
-    const RGB& pixel(int x, int y) const { return pixels_[size_t(y) * width_ + x]; }
+    RGB pixel(int x, int y) const {
+        requirePixels();
+        return at(size_t(y) * size_t(width_) + size_t(x));
+    }
 
     /// Radiance arriving from direction `towardLight` (world space, unit).
     RGB lookup(const Vec3& towardLight) const;
@@ -73,12 +80,19 @@ public:
     /// most `maxCount`.
     std::vector<EnvHotPixel> hotPixels(double minShare, int maxCount) const;
 
+    /// Frees the pixels (400 MB for an 8192 x 4096 map) once every binning a solve needs is
+    /// made (core/lpm_cache.h): width, height, integral and maxValue stay; any later read
+    /// of a pixel (lookup, sample, binning, hot pixels) throws Error.
+    void releasePixels();
+    bool hasPixels() const { return !released_; }
     /// Total power-like integral of mean RGB over the sphere (for diagnostics).
     double integral() const { return total_; }
     /// Largest pixel value (any channel).
     float maxValue() const { return maxValue_; }
 
 private:
+    RGB at(size_t i) const { return {rgb_[i * 3], rgb_[i * 3 + 1], rgb_[i * 3 + 2]}; }
+    void requirePixels() const;
     void pixelOf(const Vec3& towardLight, int& px, int& py) const;
     /// Solid angle of a pixel of row y.
     double pixelSolidAngle(int y) const;
@@ -90,7 +104,8 @@ private:
     Vec3 toImage(const Vec3& worldDir) const { return rotInv_ * worldDir; }
 
     int width_, height_;
-    std::vector<RGB> pixels_;
+    std::vector<float> rgb_;  ///< interleaved RGB, rows top to bottom
+    bool released_ = false;
     Mat3 rot_, rotInv_;
     // Sampling: the marginal over rows, and (columnCdf) the conditional over columns per row.
     std::vector<double> rowCdf_;  // height+1
@@ -101,6 +116,7 @@ private:
 
 template <class F>
 void EnvMap::forEachSubPixelInRows(int sub, int y0, int y1, F&& f, const std::vector<unsigned char>* skip) const {
+    requirePixels();
     sub = std::max(1, sub);
     const int W = width_ * sub, H = height_ * sub;
     const double dPhi = 2 * kPi / W;
@@ -117,10 +133,10 @@ void EnvMap::forEachSubPixelInRows(int sub, int y0, int y1, F&& f, const std::ve
         const double omega = dPhi * (c0 - c1);
         const double tc = std::acos(0.5 * (c0 + c1));
         const double s = std::sin(tc), c = std::cos(tc);
-        const RGB* row = &pixels_[size_t(y / sub) * width_];
-        const unsigned char* skipRow = skip ? &(*skip)[size_t(y / sub) * width_] : nullptr;
+        const size_t row = size_t(y / sub) * size_t(width_);
+        const unsigned char* skipRow = skip ? &(*skip)[row] : nullptr;
         for (int x = 0; x < W; ++x) {
-            const RGB& L = skipRow && skipRow[x / sub] ? black : row[x / sub];
+            const RGB L = skipRow && skipRow[x / sub] ? black : at(row + size_t(x / sub));
             f(rot_ * Vec3(s * sinLon[size_t(x)], c, s * cosLon[size_t(x)]), omega, L);
         }
     }

@@ -7,7 +7,6 @@
 #include <stdexcept>
 #include <utility>
 
-#include "core/malloc_policy.h"
 #include "core/parallel.h"
 #include "vdb_io/color.h"
 #include "vdb_io/image_helper.h"
@@ -36,28 +35,23 @@ std::uint64_t nonFinite(std::vector<float>& rgb, bool zero) {
     return std::accumulate(bad.begin(), bad.end(), std::uint64_t(0));
 }
 
-/// rgb as pixels, negative values clamped to 0 and counted in `negatives` (radiance
-/// cannot be negative; files hold them, and conversions out of gamut make them).
-std::vector<RGB> clampedPixels(const std::vector<float>& rgb, std::uint64_t& negatives) {
-    std::vector<RGB> pixels;
-    assignZeroed(pixels, rgb.size() / 3);  // on huge pages: an 8K map's pixels are 400 MB
-    std::vector<std::uint64_t> clamped((pixels.size() + kChunk - 1) / kChunk, 0);
-    parallelForChunks(pixels.size(), kChunk, [&](size_t b, size_t e) {
+/// Sets rgb's negative (and any non-finite) values to 0, over the threads; returns how
+/// many were negative (radiance cannot be negative; files hold such values, and
+/// conversions out of gamut make them).
+std::uint64_t clampNegatives(std::vector<float>& rgb) {
+    std::vector<std::uint64_t> clamped((rgb.size() + kChunk - 1) / kChunk, 0);
+    parallelForChunks(rgb.size(), kChunk, [&](size_t b, size_t e) {
         std::uint64_t n = 0;
-        for (size_t p = b; p < e; ++p)
-            for (int c = 0; c < 3; ++c) {
-                float v = rgb[p * 3 + c];
-                if (!std::isfinite(v)) v = 0.f;  // a conversion cannot make NaN from finite input, but be safe
-                if (v < 0) {
-                    v = 0;
-                    ++n;
-                }
-                pixels[p][c] = v;
+        for (size_t i = b; i < e; ++i) {
+            if (!std::isfinite(rgb[i])) rgb[i] = 0.f;  // a conversion cannot make NaN from finite input, but be safe
+            if (rgb[i] < 0) {
+                rgb[i] = 0.f;
+                ++n;
             }
+        }
         clamped[b / kChunk] = n;
     });
-    negatives = std::accumulate(clamped.begin(), clamped.end(), std::uint64_t(0));
-    return pixels;
+    return std::accumulate(clamped.begin(), clamped.end(), std::uint64_t(0));
 }
 
 /// The helper's decoded image, its errors as InputError.
@@ -139,12 +133,12 @@ EnvInput environmentFromImage(const EnvReadOptions& o, DecodedImage image) {
     out.workingSpace = canonicalColorSpace(o.workingSpace);
     convertColor(rgb, out.colorSpace, out.workingSpace);
 
-    std::vector<RGB> pixels = clampedPixels(rgb, out.negativeClamped);
-    std::vector<float>().swap(rgb);  // before the map's constructor: one copy of the image at a time
+    out.negativeClamped = clampNegatives(rgb);
     if (out.negativeClamped)
         out.warnings.push_back("'" + o.path + "': " + std::to_string(out.negativeClamped) +
                                " negative pixel value(s) (in the file or outside the working gamut) clamped to 0");
-    out.env = std::make_unique<EnvMap>(out.width, out.height, std::move(pixels), o.rotateYDeg, o.scale, o.up);
+    // The decoded values become the map's pixels: one copy of the image (400 MB at 8K).
+    out.env = std::make_unique<EnvMap>(out.width, out.height, std::move(rgb), o.rotateYDeg, o.scale, o.up);
     return out;
 }
 

@@ -176,3 +176,23 @@ TEST(EnvMap, HotPixelShareIsItsSamplingProbability) {
     EXPECT_EQ(m.hotPixels(0.01, 1).size(), 1u);
     EXPECT_TRUE(m.hotPixels(0.9, 16).empty());
 }
+
+TEST(EnvMap, ReleasedPixelsKeepTheSummaryAndRefuseReads) {
+    EnvMap m = codedMap(15.0);
+    const double integral = m.integral();
+    const float most = m.maxValue();
+    const RGB before = m.lookup(normalize(Vec3{0.2, 0.3, 1}));
+    EXPECT_EQ(before.r, m.pixel(4, 1).r);
+    m.releasePixels();
+    EXPECT_FALSE(m.hasPixels());
+    EXPECT_EQ(m.integral(), integral);
+    EXPECT_EQ(m.maxValue(), most);
+    EXPECT_EQ(m.width(), 8);
+    EXPECT_THROW(m.lookup(normalize(Vec3{0.2, 0.3, 1})), Error);
+    EXPECT_THROW(m.pixel(0, 0), Error);
+    EXPECT_THROW(m.hotPixels(0.1, 4), Error);
+    Vec3 d;
+    double pdf = 0;
+    EXPECT_THROW(m.sample(0.5, 0.5, d, pdf), Error);
+    EXPECT_THROW(m.forEachSubPixelInRows(1, 0, 4, [](const Vec3&, double, const RGB&) {}), Error);
+}
