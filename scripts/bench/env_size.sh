@@ -8,7 +8,8 @@
 #   scripts/bench/env_size.sh [--reps N] [--original LPMBAKE] VOLUME.vdb [bake args...]
 # Prints a markdown table: the bake's environment stage (waiting for the helper's decode,
 # then checks, colour conversion and the map), solve (which bins the map), total, the
-# process's peak RSS, and the content digest. Skies go to out/bench/env/.
+# peak RSS of lpmbake and the helper it waits for (/usr/bin/time: the larger of the two;
+# lpmbake's own is the stats JSON's peak_rss_mib), and the content digest. Skies go to out/bench/env/.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 reps=1; original=""
