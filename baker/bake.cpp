@@ -196,11 +196,14 @@ std::shared_ptr<EnvInput> readEnvironmentStage(const BakeOptions& o, BakeContext
     if (o.env.empty()) return envHeld;
     if (envReusable(o, context)) {
         sum.envReused = true;
+        sum.envSource = "sequence";
         sum.secondsEnv = since(t);
         return context->env;
     }
     const std::string key = envKey(o);
     *envHeld = decode ? readEnvironment(envReadOptions(o), *decode) : readEnvironment(envReadOptions(o));
+    sum.envSource = decode && decode->cacheHit() ? "image cache" : "decoded";
+    if (decode && !decode->cacheNote().empty()) log.debug("environment " + o.env + ": " + decode->cacheNote());
     for (const auto& w : envHeld->warnings) log.warn(w);
     log.debug("environment " + o.env + ": " + std::to_string(envHeld->width) + "x" + std::to_string(envHeld->height) +
               ", " + envHeld->colorSpace + " -> " + envHeld->workingSpace);

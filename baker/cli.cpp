@@ -163,6 +163,9 @@ ENVIRONMENT
   SLURM_CPUS_PER_TASK  default for --threads
   LPMBAKE_IMAGE_HELPER the image reader/writer lpmbake runs (default: lpmbake-image
                        beside lpmbake or in ../libexec/lpmbake)
+  LPMBAKE_IMAGE_CACHE  where decoded --env images are kept for the next process
+                       (default $XDG_CACHE_HOME/lpmbake/images or ~/.cache/lpmbake/images;
+                       off: none); LPMBAKE_IMAGE_CACHE_MIB caps it (default 2048)
 
 OUTPUT
   The output appears atomically: it is written to .NAME.lpmtmp-PID.EXT in the output

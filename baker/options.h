@@ -103,6 +103,9 @@ struct BakeSummary {
     Vec3 solveVoxelSize{0, 0, 0};  ///< its voxel size, world units (input voxel size / solveScale)
     double secondsRead = 0, secondsEnv = 0, secondsSolve = 0, secondsWrite = 0, secondsTotal = 0;
     bool envReused = false;  ///< the environment came from the sequence's context
+    /// Where the environment's pixels came from: "" (none), "decoded" (the image helper),
+    /// "image cache" (vdb_io/image_cache.h), "sequence" (an earlier frame's).
+    std::string envSource;
     int threads = 0;         ///< worker threads the bake ran with
     int sunTerms = 0;        ///< exact sun terms written (sun_transmittance_K grids)
     bool verified = false;   ///< --verify ran (`verify` holds its report)

@@ -87,6 +87,7 @@ json statsJson(const BakeOptions& o, const BakeSummary& s, const LpmResult* r) {
           {"solve", s.secondsSolve},
           {"write", s.secondsWrite},
           {"total", s.secondsTotal}}},
+        {"environment_source", s.envSource},
         {"sh_order", s.shOrder},
         {"passes", s.passes},
         {"residual", s.residual},

@@ -11,6 +11,7 @@ PKGS=(build-essential cmake ccache pkg-config
       libopenimageio-dev openimageio-tools libopencolorio-dev
       libcli11-dev libgtest-dev libbenchmark-dev   # Google Benchmark: scripts/bench/sweep_kernel.cpp
       nlohmann-json3-dev                           # sidecar and stats JSON
+      libxxhash-dev                                # the decoded-image cache (vdb_io/image_cache.h)
       slurm-wlm munge procps)   # test only: tests/farm/slurm_test.sh runs a one-node Slurm cluster
 if [ "${1:-}" = "--test" ]; then
   PKGS+=(blender               # tests/blender: the Blender import script against lpmbake render

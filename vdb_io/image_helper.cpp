@@ -9,11 +9,13 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include "core/malloc_policy.h"
@@ -127,17 +129,29 @@ struct ImageDecode::Run {
     pid_t pid = -1;
 };
 
-ImageDecode::ImageDecode(const std::string& path) {
+ImageDecode::ImageDecode(const std::string& path) : path_(path) {
     try {
-        run_ = std::make_unique<Run>();
-        run_->helper = imageHelperPath();
-        run_->pid = spawnHelper(run_->helper, {"decode", path}, -1, run_->out.fd(), run_->err.fd());
+        helper_ = imageHelperPath();
+        cache_ = imageCacheFromEnvironment();
+        if (cache_) {
+            cacheKey_ = imageCacheKey(path, helper_);
+            if (!cacheKey_.empty()) cachedFd_ = openCachedImage(*cache_, cacheKey_);
+            if (cachedFd_ >= 0) return;
+        }
+        startHelper();
     } catch (const std::runtime_error& e) {
         startError_ = e.what();
     }
 }
 
+void ImageDecode::startHelper() {
+    run_ = std::make_unique<Run>();
+    run_->helper = helper_;
+    run_->pid = spawnHelper(run_->helper, {"decode", path_}, -1, run_->out.fd(), run_->err.fd());
+}
+
 ImageDecode::~ImageDecode() {
+    if (cachedFd_ >= 0) ::close(cachedFd_);
     if (run_ && run_->pid > 0) {  // never waited for: the bake failed before it needed the image
         ::kill(run_->pid, SIGTERM);
         int status = 0;
@@ -146,14 +160,42 @@ ImageDecode::~ImageDecode() {
     }
 }
 
+/// The cached stream; an entry that passed its check but does not parse (it cannot, short
+/// of a bug) is removed and the helper decodes the image after all.
+DecodedImage ImageDecode::readCached() {
+    const int fd = std::exchange(cachedFd_, -1);
+    try {
+        DecodedImage image = readDecodedImage(fd, &assignZeroed<float>);
+        ::close(fd);
+        cacheHit_ = true;
+        cacheNote_ = "read from the image cache " + cache_->dir.string();
+        return image;
+    } catch (const std::runtime_error&) {
+        ::close(fd);
+        std::error_code ec;
+        std::filesystem::remove(cache_->dir / (cacheKey_ + ".lpmimg"), ec);
+        startHelper();
+        return wait();
+    }
+}
+
 DecodedImage ImageDecode::wait() {
     if (!startError_.empty()) throw std::runtime_error(startError_);
+    if (cachedFd_ >= 0) return readCached();
     if (!run_ || run_->pid <= 0) throw std::runtime_error("image helper: wait() called twice");
     const pid_t pid = run_->pid;
     run_->pid = -1;
     waitForHelper(pid, run_->helper, run_->err);
     run_->out.rewind();
     DecodedImage image = readDecodedImage(run_->out.fd(), &assignZeroed<float>);
+    if (cache_ && !cacheKey_.empty()) {
+        const auto t = std::chrono::steady_clock::now();
+        const std::string notStored = storeCachedImage(*cache_, cacheKey_, run_->out.fd());
+        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+        cacheNote_ = notStored.empty() ? "decoded and stored in the image cache " + cache_->dir.string() + " (" +
+                                             std::to_string(int(ms + 0.5)) + " ms)"
+                                       : "decoded; not cached: " + notStored;
+    }
     run_.reset();  // the in-memory file's pages (the image again) go now, not with this object
     return image;
 }

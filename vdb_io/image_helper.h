@@ -7,8 +7,10 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 
+#include "vdb_io/image_cache.h"
 #include "vdb_io/image_codec.h"
 
 namespace lpm {
@@ -22,6 +24,8 @@ std::string imageHelperPath();
 /// caller can do other work (read the volume) while OpenImageIO loads and decodes.
 /// Problems starting the helper are reported by wait(), like the helper's own errors.
 /// A helper never waited for is stopped (SIGTERM) and reaped by the destructor.
+/// With the decoded-image cache on (image_cache.h) an image decoded before by another
+/// process is read from the cache and no helper starts; one the helper decodes is stored.
 class ImageDecode {
 public:
     explicit ImageDecode(const std::string& path);
@@ -30,11 +34,22 @@ public:
     ImageDecode& operator=(const ImageDecode&) = delete;
     /// The decoded image; throws std::runtime_error as decodeImageWithHelper does. Once.
     DecodedImage wait();
+    /// What the cache did, for -v: "" (cache off), read from it, stored in it, or why not.
+    const std::string& cacheNote() const { return cacheNote_; }
+    /// True when wait() read the image from the cache.
+    bool cacheHit() const { return cacheHit_; }
 
 private:
     struct Run;
+    void startHelper();
+    DecodedImage readCached();
     std::unique_ptr<Run> run_;
     std::string startError_;
+    std::string path_, helper_;
+    std::optional<ImageCacheConfig> cache_;
+    std::string cacheKey_, cacheNote_;
+    int cachedFd_ = -1;
+    bool cacheHit_ = false;
 };
 
 /// encodeImageFile (image_codec.h) in a helper process started by the constructor and fed

@@ -9,7 +9,9 @@
 # Prints a markdown table of each run and the speed-ups of solve, total (the bake's own
 # timer, from the stats JSON) and process (the whole lpmbake process, start-up included:
 # since session 30 the environment image's decoder loads in a helper process during the
-# bake, where before it loaded before main, outside `total`).
+# bake, where before it loaded before main, outside `total`). The environment column says
+# where the sky came from: `decoded` by the helper or the decoded-image cache (session 32,
+# docs/image_cache.md: every run after the first reads it unless LPMBAKE_IMAGE_CACHE=off).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 reps=5
@@ -37,8 +39,8 @@ import glob, json, os, statistics, sys
 out, reps = sys.argv[1], int(sys.argv[2])
 runs = {1: [], 2: []}
 digests = set()
-print("| run | threads | solve s | total s | process s | write s | peak RSS MiB | digest |")
-print("|---|---|---|---|---|---|---|---|")
+print("| run | threads | solve s | total s | process s | environment s (from) | write s | peak RSS MiB | digest |")
+print("|---|---|---|---|---|---|---|---|---|")
 for i in range(1, reps + 1):
     for t in (1, 2):
         d = json.load(open(os.path.join(out, f"{t}.{i}.json")))
@@ -47,7 +49,8 @@ for i in range(1, reps + 1):
         ts = d["timings_s"]
         process = int(open(os.path.join(out, f"{t}.{i}.process")).read()) / 1e9
         runs[t].append((ts["solve"], ts["total"], process))
-        print(f"| {i} | {t} | {ts['solve']:.2f} | {ts['total']:.2f} | {process:.2f} | {ts['write']:.2f} | "
+        print(f"| {i} | {t} | {ts['solve']:.2f} | {ts['total']:.2f} | {process:.2f} | "
+              f"{ts['environment']:.2f} ({d.get('environment_source', '?')}) | {ts['write']:.2f} | "
               f"{d['peak_rss_mib']:.0f} | {dig} |")
 for k, name in ((0, "solve"), (1, "total"), (2, "process")):
     a = [r[k] for r in runs[1]]

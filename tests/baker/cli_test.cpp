@@ -764,3 +764,35 @@ TEST(Cli, SidecarHoldsTheFilesMetadata) {
     s.push_back("--list-pending");
     EXPECT_EQ(runLpmbake(s, dir).out, "3\n");
 }
+
+TEST(Cli, ASecondBakeReadsTheSkyFromTheImageCache) {
+    // Farm frames are separate processes: the second decodes nothing, and bakes the same.
+    const std::string dir = lpmtest::scratchDir();
+    const std::vector<std::pair<std::string, std::string>> cache = {{"LPMBAKE_IMAGE_CACHE", dir + "/cache"}};
+    std::string source[2];
+    for (const int i : {0, 1}) {
+        auto a = torusArgs(dir + "/b" + std::to_string(i) + ".vdb");
+        a.insert(a.end(), {"-v", "--stats", dir + "/s" + std::to_string(i) + ".json"});
+        const auto r = runLpmbake(a, dir, cache);
+        ASSERT_EQ(r.code, 0) << r.err.substr(0, 2000);
+        EXPECT_NE(r.err.find(i == 0 ? "stored in the image cache" : "read from the image cache"), std::string::npos)
+            << r.err;
+        source[i] = nlohmann::json::parse(lpmtest::readAll(dir + "/s" + std::to_string(i) + ".json"))
+                        .at("environment_source")
+                        .get<std::string>();
+    }
+    EXPECT_EQ(source[0], "decoded");
+    EXPECT_EQ(source[1], "image cache");
+    const BakeFile decoded = readBakeFile(dir + "/b0.vdb"), cached = readBakeFile(dir + "/b1.vdb");
+    ASSERT_TRUE(decoded.scatter && cached.scatter);
+    size_t compared = 0;
+    auto cachedAcc = cached.scatter->getConstAccessor();
+    for (auto v = decoded.scatter->cbeginValueOn(); v; ++v, ++compared)
+        ASSERT_EQ(*v, cachedAcc.getValue(v.getCoord())) << v.getCoord();
+    EXPECT_GT(compared, 1000u);
+    // A limit that is not a number: one line naming the variable, and no output.
+    const auto r = runLpmbake(torusArgs(dir + "/bad.vdb"), dir,
+                              {{"LPMBAKE_IMAGE_CACHE", dir + "/cache"}, {"LPMBAKE_IMAGE_CACHE_MIB", "2GB"}});
+    expectOneLineError(r, 2, "env", {"LPMBAKE_IMAGE_CACHE_MIB", "'2GB'"});
+    EXPECT_FALSE(fs::exists(dir + "/bad.vdb"));
+}

@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstdlib>
@@ -36,6 +37,16 @@ void expectSameImage(const DecodedImage& a, const DecodedImage& b, bool sameFile
     ASSERT_EQ(a.rgb.size(), b.rgb.size());
     EXPECT_EQ(std::memcmp(a.rgb.data(), b.rgb.data(), a.rgb.size() * sizeof(float)), 0);
 }
+
+/// The decoded-image cache (image_cache.h) is off here, so every decode runs the helper
+/// these tests are about; the cache's own tests below turn it on for their scope.
+const bool kCacheOff = ::setenv("LPMBAKE_IMAGE_CACHE", "off", 1) == 0;
+
+/// LPMBAKE_IMAGE_CACHE at `dir` for one scope.
+struct CacheAt {
+    explicit CacheAt(const std::string& dir) { ::setenv("LPMBAKE_IMAGE_CACHE", dir.c_str(), 1); }
+    ~CacheAt() { ::setenv("LPMBAKE_IMAGE_CACHE", "off", 1); }
+};
 
 /// LPMBAKE_IMAGE_HELPER set for one scope.
 struct HelperOverride {
@@ -215,4 +226,70 @@ TEST(ImageHelper, TheDecodedImagesFileGoesWhenItIsRead) {
     EXPECT_EQ(image.width, 300);
     EXPECT_EQ(openDescriptors(), before);
     EXPECT_THROW(decode.wait(), std::runtime_error);  // once
+}
+
+namespace {
+
+/// A helper that appends a line to `log` for each run, then runs the real one.
+std::string countingHelper(const std::string& log) {
+    ::unsetenv("LPMBAKE_IMAGE_HELPER");
+    return script("counting.sh", "echo run >> '" + log + "'\nexec '" + imageHelperPath() + "' \"$@\"");
+}
+
+size_t runsIn(const std::string& log) {
+    const std::string s = lpmtest::readBytes(log);
+    return size_t(std::count(s.begin(), s.end(), '\n'));
+}
+
+void writeGrey(const std::string& path, float value) {
+    ImageToEncode g;  // chromaticities: decoded with a warning that names the file
+    g.width = 4;
+    g.height = 2;
+    g.chromaticities = {0.713f, 0.293f, 0.165f, 0.830f, 0.128f, 0.044f, 0.32168f, 0.33767f};
+    g.rgb.assign(4 * 2 * 3, value);
+    encodeImageFile(path, path, g);
+}
+
+}  // namespace
+
+TEST(ImageHelper, ACachedImageIsReadWithoutStartingTheHelper) {
+    ASSERT_TRUE(kCacheOff);
+    const std::string dir = lpmtest::scratchDir(), log = dir + "/runs", grey = dir + "/grey.exr";
+    CacheAt cache(dir + "/cache");
+    HelperOverride h(countingHelper(log));
+    writeGrey(grey, 0.25f);
+    ImageDecode first(grey);
+    const DecodedImage decoded = first.wait();
+    EXPECT_FALSE(first.cacheHit());
+    EXPECT_NE(first.cacheNote().find("decoded and stored in the image cache " + dir + "/cache"), std::string::npos)
+        << first.cacheNote();
+    EXPECT_EQ(runsIn(log), 1u);
+    ASSERT_EQ(decoded.warnings.size(), 1u);
+    ImageDecode second(grey);
+    const DecodedImage cached = second.wait();
+    EXPECT_TRUE(second.cacheHit());
+    EXPECT_EQ(second.cacheNote(), "read from the image cache " + dir + "/cache");
+    EXPECT_EQ(runsIn(log), 1u);  // no helper this time
+    expectSameImage(cached, decoded);
+    // The file changes: decoded again, the new pixels.
+    writeGrey(grey, 0.5f);
+    ImageDecode third(grey);
+    const DecodedImage changed = third.wait();
+    EXPECT_FALSE(third.cacheHit());
+    EXPECT_EQ(runsIn(log), 2u);
+    ASSERT_FALSE(changed.rgb.empty());
+    EXPECT_EQ(changed.rgb[0], 0.5f);
+}
+
+TEST(ImageHelper, AFailedDecodeIsNotCached) {
+    const std::string dir = lpmtest::scratchDir(), log = dir + "/runs", cut = dir + "/cut.exr";
+    CacheAt cache(dir + "/cache");
+    HelperOverride h(countingHelper(log));
+    lpmtest::writeBytes(cut, lpmtest::readBytes(dataPath("env/OrientationLatLong.exr")).substr(0, 400));
+    const std::string error = decodeError(cut);
+    EXPECT_FALSE(error.empty());
+    EXPECT_EQ(decodeError(cut), error);
+    EXPECT_EQ(runsIn(log), 2u);
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator(dir + "/cache", ec)) ADD_FAILURE() << e.path();
 }

@@ -1,0 +1,46 @@
+// The decoded-image cache: the image helper's output stream (image_protocol.h) kept on
+// disk, so a process that bakes with a sky another process already decoded reads the
+// decoded floats instead of starting lpmbake-image (OpenImageIO's 0.4-0.6 s load, plus
+// the decode: 1.6-2.1 s for an 8192 x 4096 EXR). docs/image_cache.md has the design.
+//
+// An entry is named by the XXH3-128 of the helper's identity (path, size, modification
+// time), the image path as given (the helper's warnings name it) and every byte of the
+// image file: a changed file, another helper build or another name is another entry. An
+// entry is the stream followed by its XXH3-64 and a magic word; one that fails the check
+// is removed and missed. Entries are written to a temporary name and renamed, so
+// concurrent processes see whole entries or none; the least recently used go once the
+// directory holds more than its limit. A cache that cannot be read or written is a miss,
+// never an error.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+namespace lpm {
+
+struct ImageCacheConfig {
+    std::filesystem::path dir;
+    std::uint64_t limitBytes = 0;
+};
+
+/// From the environment: LPMBAKE_IMAGE_CACHE (a directory; "off" turns the cache off),
+/// else $XDG_CACHE_HOME/lpmbake/images, else $HOME/.cache/lpmbake/images;
+/// LPMBAKE_IMAGE_CACHE_MIB, the limit (default 2048). nullopt: off, or no home to put it in.
+std::optional<ImageCacheConfig> imageCacheFromEnvironment();
+
+/// The entry name (32 hex digits) for decoding `imagePath` with the helper at `helperPath`;
+/// "" when either cannot be read.
+std::string imageCacheKey(const std::string& imagePath, const std::string& helperPath);
+
+/// A descriptor at the start of the stream of the verified entry `key`, or -1 (none, or
+/// it failed its check and was removed). The caller closes it. Marks the entry used.
+int openCachedImage(const ImageCacheConfig& cache, const std::string& key);
+
+/// Stores the whole content of `streamFd` (read from offset 0) as entry `key`, then removes
+/// the least recently used entries until the cache is within its limit. Returns "" or
+/// why the entry was not stored. Never throws.
+std::string storeCachedImage(const ImageCacheConfig& cache, const std::string& key, int streamFd);
+
+}  // namespace lpm
