@@ -2,7 +2,6 @@
 #include "vdb_io/image_cache.h"
 
 #include <fcntl.h>
-#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 #include <xxhash.h>
@@ -57,18 +56,33 @@ std::uint64_t limitFromEnvironment() {
     return std::uint64_t(v) << 20;
 }
 
-/// The XXH3-64 of `bytes` bytes of `fd` from offset 0 (mapped, not copied); false if it
-/// cannot be mapped.
-bool hashOfFile(int fd, std::size_t bytes, XXH64_hash_t& hash) {
-    if (bytes == 0) {
-        hash = XXH3_64bits(nullptr, 0);
-        return true;
-    }
-    void* p = ::mmap(nullptr, bytes, PROT_READ, MAP_PRIVATE, fd, 0);
-    if (p == MAP_FAILED) return false;
-    hash = XXH3_64bits(p, bytes);
-    ::munmap(p, bytes);
+/// The stream's length and its trailer's hash; false when the entry has no whole trailer.
+bool readTrailer(int fd, std::size_t& streamBytes, XXH64_hash_t& hash) {
+    struct stat st {};
+    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode) || std::size_t(st.st_size) <= kTrailerBytes) return false;
+    streamBytes = std::size_t(st.st_size) - kTrailerBytes;
+    char trailer[kTrailerBytes];
+    if (::pread(fd, trailer, sizeof trailer, off_t(streamBytes)) != ssize_t(sizeof trailer) ||
+        std::memcmp(trailer + 8, kTrailerMagic, 8) != 0)
+        return false;
+    std::memcpy(&hash, trailer, 8);
     return true;
+}
+
+/// The XXH3-64 of the stream's first `headBytes` bytes, read from `fd`, then of `tail`.
+XXH64_hash_t hashOfStream(int fd, std::size_t headBytes, const void* tail, std::size_t tailBytes) {
+    std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), &XXH3_freeState);
+    if (!state || XXH3_64bits_reset(state.get()) != XXH_OK) return 0;
+    std::vector<char> buf(std::min(headBytes, kChunk));
+    for (std::size_t at = 0; at < headBytes;) {
+        const ssize_t n = ::pread(fd, buf.data(), std::min(buf.size(), headBytes - at), off_t(at));
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) return 0;
+        XXH3_64bits_update(state.get(), buf.data(), std::size_t(n));
+        at += std::size_t(n);
+    }
+    XXH3_64bits_update(state.get(), tail, tailBytes);
+    return XXH3_64bits_digest(state.get());
 }
 
 struct Entry {
@@ -191,21 +205,25 @@ std::string imageCacheKey(const std::string& imagePath, const std::string& helpe
 int openCachedImage(const ImageCacheConfig& cache, const std::string& key) {
     const fs::path path = entryPath(cache, key);
     Fd entry(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
-    struct stat st {};
-    if (entry.fd < 0 || ::fstat(entry.fd, &st) != 0) return -1;
-    bool whole = S_ISREG(st.st_mode) && std::size_t(st.st_size) > kTrailerBytes;
-    char trailer[kTrailerBytes];
-    const std::size_t streamBytes = whole ? std::size_t(st.st_size) - kTrailerBytes : 0;
-    whole = whole && ::pread(entry.fd, trailer, sizeof trailer, off_t(streamBytes)) == ssize_t(sizeof trailer) &&
-            std::memcmp(trailer + 8, kTrailerMagic, 8) == 0;
-    XXH64_hash_t stored = 0, actual = 0;
-    if (whole) std::memcpy(&stored, trailer, 8);
-    if (!whole || !hashOfFile(entry.fd, streamBytes, actual) || actual != stored) {
-        ::unlink(path.c_str());  // torn or damaged: the next decode stores it again
+    if (entry.fd < 0) return -1;
+    std::size_t streamBytes = 0;
+    XXH64_hash_t stored = 0;
+    if (!readTrailer(entry.fd, streamBytes, stored)) {
+        ::unlink(path.c_str());  // torn: the next decode stores it again
         return -1;
     }
     ::futimens(entry.fd, nullptr);  // used now: the last to be evicted
     return entry.release();
+}
+
+bool cachedImageIntact(const ImageCacheConfig& cache, const std::string& key, int fd, const void* tail,
+                       std::size_t tailBytes) {
+    std::size_t streamBytes = 0;
+    XXH64_hash_t stored = 0;
+    const bool intact = readTrailer(fd, streamBytes, stored) && tailBytes <= streamBytes &&
+                        hashOfStream(fd, streamBytes - tailBytes, tail, tailBytes) == stored;
+    if (!intact) ::unlink(entryPath(cache, key).c_str());
+    return intact;
 }
 
 std::string storeCachedImage(const ImageCacheConfig& cache, const std::string& key, int streamFd) {

@@ -13,6 +13,7 @@
 // never an error.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -34,9 +35,16 @@ std::optional<ImageCacheConfig> imageCacheFromEnvironment();
 /// "" when either cannot be read.
 std::string imageCacheKey(const std::string& imagePath, const std::string& helperPath);
 
-/// A descriptor at the start of the stream of the verified entry `key`, or -1 (none, or
-/// it failed its check and was removed). The caller closes it. Marks the entry used.
+/// A descriptor at the start of entry `key`'s stream, or -1 (none, or torn: no trailer,
+/// removed). The caller closes it and checks what it read with cachedImageIntact. Marks
+/// the entry used.
 int openCachedImage(const ImageCacheConfig& cache, const std::string& key);
+
+/// True when entry `key`, open as `fd`, is intact: the XXH3-64 of its stream, whose last
+/// `tailBytes` bytes the caller read into `tail` (the floats: hashed in memory, not read
+/// twice), matches the trailer. Otherwise removes the entry.
+bool cachedImageIntact(const ImageCacheConfig& cache, const std::string& key, int fd, const void* tail,
+                       std::size_t tailBytes);
 
 /// Stores the whole content of `streamFd` (read from offset 0) as entry `key`, then removes
 /// the least recently used entries until the cache is within its limit. Returns "" or

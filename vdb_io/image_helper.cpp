@@ -160,23 +160,28 @@ ImageDecode::~ImageDecode() {
     }
 }
 
-/// The cached stream; an entry that passed its check but does not parse (it cannot, short
-/// of a bug) is removed and the helper decodes the image after all.
+/// The cached stream, checked against its entry's hash as read; an entry that does not
+/// parse or fails the check (damaged on disk) is removed and the helper decodes the image
+/// after all.
 DecodedImage ImageDecode::readCached() {
     const int fd = std::exchange(cachedFd_, -1);
+    bool intact = false;
+    DecodedImage image;
     try {
-        DecodedImage image = readDecodedImage(fd, &assignZeroed<float>);
-        ::close(fd);
-        cacheHit_ = true;
-        cacheNote_ = "read from the image cache " + cache_->dir.string();
-        return image;
+        image = readDecodedImage(fd, &assignZeroed<float>);
+        intact = cachedImageIntact(*cache_, cacheKey_, fd, image.rgb.data(), image.rgb.size() * sizeof(float));
     } catch (const std::runtime_error&) {
-        ::close(fd);
         std::error_code ec;
         std::filesystem::remove(cache_->dir / (cacheKey_ + ".lpmimg"), ec);
+    }
+    ::close(fd);
+    if (!intact) {
         startHelper();
         return wait();
     }
+    cacheHit_ = true;
+    cacheNote_ = "read from the image cache " + cache_->dir.string();
+    return image;
 }
 
 DecodedImage ImageDecode::wait() {

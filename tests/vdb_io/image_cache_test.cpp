@@ -39,13 +39,18 @@ std::string readAllFrom(int fd) {
     return s;
 }
 
-/// The entry's stream, or "<miss>".
+/// The entry's stream, or "<miss>": opened, read as a reader does (the floats after the
+/// header go to memory, here the second half), and checked.
 std::string cached(const ImageCacheConfig& cache, const std::string& key) {
     const int fd = openCachedImage(cache, key);
     if (fd < 0) return "<miss>";
     std::string s = readAllFrom(fd);
+    s.resize(s.size() - 16);  // the trailer: hash and magic word
+    const size_t head = s.size() / 2;
+    const std::string tail = s.substr(head);
+    const bool intact = cachedImageIntact(cache, key, fd, tail.data(), tail.size());
     ::close(fd);
-    return s.substr(0, s.size() - 16);  // the trailer: hash and magic word
+    return intact ? s : "<miss>";
 }
 
 void store(const ImageCacheConfig& cache, const std::string& key, const std::string& bytes) {
@@ -129,6 +134,12 @@ TEST(ImageCache, ADamagedOrTornEntryIsMissedAndRemoved) {
     lpmtest::writeBytes(cache.dir / "flip.lpmimg", entry);
     EXPECT_EQ(cached(cache, "flip"), "<miss>");
     EXPECT_FALSE(fs::exists(cache.dir / "flip.lpmimg"));
+    store(cache, "head", stream);  // a byte the check reads from the file, not from memory
+    entry = lpmtest::readBytes(cache.dir / "head.lpmimg");
+    entry[10] = 'q';
+    lpmtest::writeBytes(cache.dir / "head.lpmimg", entry);
+    EXPECT_EQ(cached(cache, "head"), "<miss>");
+    EXPECT_FALSE(fs::exists(cache.dir / "head.lpmimg"));
     store(cache, "torn", stream);
     entry = lpmtest::readBytes(cache.dir / "torn.lpmimg");
     lpmtest::writeBytes(cache.dir / "torn.lpmimg", entry.substr(0, entry.size() - 100));

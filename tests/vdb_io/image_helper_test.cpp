@@ -293,3 +293,25 @@ TEST(ImageHelper, AFailedDecodeIsNotCached) {
     std::error_code ec;
     for (const auto& e : std::filesystem::directory_iterator(dir + "/cache", ec)) ADD_FAILURE() << e.path();
 }
+
+TEST(ImageHelper, ADamagedCacheEntryIsDecodedAgainAndReplaced) {
+    const std::string dir = lpmtest::scratchDir(), log = dir + "/runs", grey = dir + "/grey.exr";
+    CacheAt cache(dir + "/cache");
+    HelperOverride h(countingHelper(log));
+    writeGrey(grey, 0.25f);
+    const DecodedImage decoded = ImageDecode(grey).wait();
+    std::filesystem::path entry;
+    for (const auto& e : std::filesystem::directory_iterator(dir + "/cache")) entry = e.path();
+    ASSERT_EQ(entry.extension(), ".lpmimg");
+    std::string bytes = lpmtest::readBytes(entry);
+    bytes[bytes.size() - 16 - 5] ^= 0x40;  // a float's byte: the stream still parses
+    lpmtest::writeBytes(entry, bytes);
+    ImageDecode again(grey);
+    expectSameImage(again.wait(), decoded);
+    EXPECT_FALSE(again.cacheHit());
+    EXPECT_EQ(runsIn(log), 2u);
+    ImageDecode third(grey);  // the entry was stored again, whole
+    expectSameImage(third.wait(), decoded);
+    EXPECT_TRUE(third.cacheHit());
+    EXPECT_EQ(runsIn(log), 2u);
+}
