@@ -106,9 +106,9 @@ struct BakeSummary {
     /// Where the environment's pixels came from: "" (none), "decoded" (the image helper),
     /// "image cache" (vdb_io/image_cache.h), "sequence" (an earlier frame's).
     std::string envSource;
-    int threads = 0;         ///< worker threads the bake ran with
-    int sunTerms = 0;        ///< exact sun terms written (sun_transmittance_K grids)
-    bool verified = false;   ///< --verify ran (`verify` holds its report)
+    int threads = 0;        ///< worker threads the bake ran with
+    int sunTerms = 0;       ///< exact sun terms written (sun_transmittance_K grids)
+    bool verified = false;  ///< --verify ran (`verify` holds its report)
     VerifyReport verify;
     bool verifyFailed = false;  ///< the estimate's lower bound exceeds --max-error
     long peakRssKiB = 0;

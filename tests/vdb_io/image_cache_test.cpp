@@ -213,8 +213,10 @@ TEST(ImageCache, WhereItLivesAndItsLimitComeFromTheEnvironment) {
         EXPECT_EQ(c->limitBytes, std::uint64_t(512) << 20);
     }
     {
-        EnvSet env{{"LPMBAKE_IMAGE_CACHE", nullptr}, {"LPMBAKE_IMAGE_CACHE_MIB", nullptr},
-                    {"XDG_CACHE_HOME", "/x/cache"}, {"HOME", "/home/td"}};
+        EnvSet env{{"LPMBAKE_IMAGE_CACHE", nullptr},
+                   {"LPMBAKE_IMAGE_CACHE_MIB", nullptr},
+                   {"XDG_CACHE_HOME", "/x/cache"},
+                   {"HOME", "/home/td"}};
         const auto c = imageCacheFromEnvironment();
         ASSERT_TRUE(c);
         EXPECT_EQ(c->dir, "/x/cache/lpmbake/images");
@@ -240,7 +242,8 @@ TEST(ImageCache, WhereItLivesAndItsLimitComeFromTheEnvironment) {
     }
     for (const char* bad : {"lots", "-5", "12MB"}) {
         EnvSet env{{"LPMBAKE_IMAGE_CACHE", "/c"}, {"LPMBAKE_IMAGE_CACHE_MIB", bad}};
-        lpmtest::expectThrowWith<std::runtime_error>([] { (void)imageCacheFromEnvironment(); },
-                                 {"LPMBAKE_IMAGE_CACHE_MIB", std::string("'") + bad + "'", "not a number of MiB"});
+        lpmtest::expectThrowWith<std::runtime_error>(
+            [] { (void)imageCacheFromEnvironment(); },
+            {"LPMBAKE_IMAGE_CACHE_MIB", std::string("'") + bad + "'", "not a number of MiB"});
     }
 }
