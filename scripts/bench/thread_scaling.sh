@@ -12,6 +12,8 @@
 # bake, where before it loaded before main, outside `total`). The environment column says
 # where the sky came from: `decoded` by the helper or the decoded-image cache (session 32,
 # docs/image_cache.md: every run after the first reads it unless LPMBAKE_IMAGE_CACHE=off).
+# Before each repetition, lpm_bench_host_scaling (when built) measures the host's own
+# 1 -> 2 thread speed-up on kernels with no serial part: the ceiling of that moment.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 reps=5
@@ -24,7 +26,10 @@ vdb=${1:?usage: thread_scaling.sh [--reps N] VOLUME.vdb [bake args...]}; shift
 [ "$bin" != build/baker/lpmbake ] || [ -x "$bin" ] || bash scripts/build.sh >/dev/null
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
+host=build/scripts/bench/lpm_bench_host_scaling
 for ((i = 1; i <= reps; ++i)); do
+  # The host's own ceiling, in the same run (scripts/bench/host_scaling.cpp).
+  if [ -x "$host" ]; then "$host" 1 | tail -3 | sed "s/^| /| $i | /" >> "$out/host"; fi
   for t in 1 2; do
     t0=$(date +%s%N)
     "$bin" "$vdb" "$@" --threads "$t" --stats "$out/$t.$i.json" -o "$out/$t.$i.vdb" 2>/dev/null
@@ -34,7 +39,8 @@ for ((i = 1; i <= reps; ++i)); do
     rm -f "$out/$t.$i.vdb"
   done
 done
-python3 - "$out" "$reps" <<'PY'
+status=0
+python3 - "$out" "$reps" <<'PY' || status=$?
 import glob, json, os, statistics, sys
 out, reps = sys.argv[1], int(sys.argv[2])
 runs = {1: [], 2: []}
@@ -61,3 +67,11 @@ for k, name in ((0, "solve"), (1, "total"), (2, "process")):
 print(f"\ncontent digests: {'all equal' if len(digests) == 1 else 'DIFFER: ' + ', '.join(sorted(digests))}")
 sys.exit(0 if len(digests) == 1 else 1)
 PY
+if [ -s "$out/host" ]; then
+  echo
+  echo "The host's ceiling (lpm_bench_host_scaling 1 before each repetition; perfect is 2.00x):"
+  echo "| rep | kernel | 1 thread s | 2 threads s | speed-up | (same) |"
+  echo "|---|---|---|---|---|---|"
+  cat "$out/host"
+fi
+exit $status
