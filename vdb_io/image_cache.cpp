@@ -209,7 +209,7 @@ int openCachedImage(const ImageCacheConfig& cache, const std::string& key) {
     std::size_t streamBytes = 0;
     XXH64_hash_t stored = 0;
     if (!readTrailer(entry.fd, streamBytes, stored)) {
-        ::unlink(path.c_str());  // torn: the next decode stores it again
+        removeCachedImage(cache, key);  // torn: the next decode stores it again
         return -1;
     }
     ::futimens(entry.fd, nullptr);  // used now: the last to be evicted
@@ -222,8 +222,12 @@ bool cachedImageIntact(const ImageCacheConfig& cache, const std::string& key, in
     XXH64_hash_t stored = 0;
     const bool intact = readTrailer(fd, streamBytes, stored) && tailBytes <= streamBytes &&
                         hashOfStream(fd, streamBytes - tailBytes, tail, tailBytes) == stored;
-    if (!intact) ::unlink(entryPath(cache, key).c_str());
+    if (!intact) removeCachedImage(cache, key);
     return intact;
+}
+
+void removeCachedImage(const ImageCacheConfig& cache, const std::string& key) {
+    ::unlink(entryPath(cache, key).c_str());
 }
 
 std::string storeCachedImage(const ImageCacheConfig& cache, const std::string& key, int streamFd) {

@@ -46,6 +46,9 @@ int openCachedImage(const ImageCacheConfig& cache, const std::string& key);
 bool cachedImageIntact(const ImageCacheConfig& cache, const std::string& key, int fd, const void* tail,
                        std::size_t tailBytes);
 
+/// Removes entry `key` (one the reader found unreadable); a missing entry is no error.
+void removeCachedImage(const ImageCacheConfig& cache, const std::string& key);
+
 /// Stores the whole content of `streamFd` (read from offset 0) as entry `key`, then removes
 /// the least recently used entries until the cache is within its limit. Returns "" or
 /// why the entry was not stored. Never throws.

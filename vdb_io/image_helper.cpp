@@ -170,9 +170,8 @@ DecodedImage ImageDecode::readCached() {
     try {
         image = readDecodedImage(fd, &assignZeroed<float>);
         intact = cachedImageIntact(*cache_, cacheKey_, fd, image.rgb.data(), image.rgb.size() * sizeof(float));
-    } catch (const std::runtime_error&) {
-        std::error_code ec;
-        std::filesystem::remove(cache_->dir / (cacheKey_ + ".lpmimg"), ec);
+    } catch (const std::exception&) {  // a header that does not parse (std::stoi throws logic errors)
+        removeCachedImage(*cache_, cacheKey_);
     }
     ::close(fd);
     if (!intact) {

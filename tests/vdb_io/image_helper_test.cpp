@@ -314,4 +314,14 @@ TEST(ImageHelper, ADamagedCacheEntryIsDecodedAgainAndReplaced) {
     expectSameImage(third.wait(), decoded);
     EXPECT_TRUE(third.cacheHit());
     EXPECT_EQ(runsIn(log), 2u);
+    // A header that does not parse (std::stoi's logic_error, not a runtime_error).
+    bytes = lpmtest::readBytes(entry);
+    const size_t width = bytes.find("width 4");
+    ASSERT_NE(width, std::string::npos);
+    bytes[width + 6] = '?';
+    lpmtest::writeBytes(entry, bytes);
+    ImageDecode fourth(grey);
+    expectSameImage(fourth.wait(), decoded);
+    EXPECT_FALSE(fourth.cacheHit());
+    EXPECT_EQ(runsIn(log), 3u);
 }
