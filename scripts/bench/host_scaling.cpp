@@ -63,7 +63,8 @@ int main(int argc, char** argv) {
         {"cache", [&](int t) { return sweep(small[std::size_t(t)], 40000); }},
         {"memory", [&](int t) { return sweep(large[std::size_t(t)], 8); }},
     };
-    std::printf("| kernel | 1 thread s (min, median) | 2 threads s (min, median) | speed-up of minima | of medians |\n");
+    std::printf(
+        "| kernel | 1 thread s (min, median) | 2 threads s (min, median) | speed-up of minima | of medians |\n");
     std::printf("|---|---|---|---|---|\n");
     for (const auto& [name, work] : kernels) {
         std::vector<double> one, two;
