@@ -325,3 +325,15 @@ TEST(ImageHelper, ADamagedCacheEntryIsDecodedAgainAndReplaced) {
     EXPECT_FALSE(fourth.cacheHit());
     EXPECT_EQ(runsIn(log), 3u);
 }
+
+TEST(ImageHelper, ACacheThatCannotBeWrittenOnlyMeansNoCache) {
+    const std::string dir = lpmtest::scratchDir(), blocker = dir + "/a-file";
+    lpmtest::writeBytes(blocker, "not a directory");
+    CacheAt cache(blocker + "/images");  // cannot be created, even by root
+    ImageDecode decode(dataPath("env/rooftop_small.hdr"));
+    const DecodedImage image = decode.wait();
+    EXPECT_EQ(image.width, 300);
+    EXPECT_FALSE(decode.cacheHit());
+    EXPECT_NE(decode.cacheNote().find("decoded; not cached: cannot create " + blocker + "/images"), std::string::npos)
+        << decode.cacheNote();
+}
