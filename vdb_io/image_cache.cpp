@@ -184,8 +184,9 @@ std::string imageCacheKey(const std::string& imagePath, const std::string& helpe
     if (image.fd < 0 || ::fstat(image.fd, &st) != 0 || !S_ISREG(st.st_mode)) return "";
     std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), &XXH3_freeState);
     if (!state || XXH3_128bits_reset(state.get()) != XXH_OK) return "";
-    const std::string salt = "lpmbake-image-cache 1\n" + helperPath + "\n" + std::to_string(helper.st_size) + " " +
-                             std::to_string(nanoseconds(helper.st_mtim)) + "\n" + imagePath + "\n";
+    const std::string salt = std::string("lpmbake-image-cache 1 ") + LPM_VERSION_STRING + "\n" + helperPath + "\n" +
+                             std::to_string(helper.st_size) + " " + std::to_string(nanoseconds(helper.st_mtim)) + "\n" +
+                             imagePath + "\n";
     XXH3_128bits_update(state.get(), salt.data(), salt.size());
     std::vector<char> buf(kChunk);
     for (;;) {
@@ -200,6 +201,13 @@ std::string imageCacheKey(const std::string& imagePath, const std::string& helpe
     std::snprintf(hex, sizeof hex, "%016llx%016llx", static_cast<unsigned long long>(h.high64),
                   static_cast<unsigned long long>(h.low64));
     return hex;
+}
+
+std::string imageFileStamp(const std::string& imagePath) {
+    struct stat st {};
+    if (::stat(imagePath.c_str(), &st) != 0) return "";
+    return std::to_string(st.st_dev) + " " + std::to_string(st.st_ino) + " " + std::to_string(st.st_size) + " " +
+           std::to_string(nanoseconds(st.st_mtim)) + " " + std::to_string(nanoseconds(st.st_ctim));
 }
 
 int openCachedImage(const ImageCacheConfig& cache, const std::string& key) {

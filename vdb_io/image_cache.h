@@ -31,9 +31,16 @@ struct ImageCacheConfig {
 /// LPMBAKE_IMAGE_CACHE_MIB, the limit (default 2048). nullopt: off, or no home to put it in.
 std::optional<ImageCacheConfig> imageCacheFromEnvironment();
 
-/// The entry name (32 hex digits) for decoding `imagePath` with the helper at `helperPath`;
-/// "" when either cannot be read.
+/// The entry name (32 hex digits) for decoding `imagePath` with the helper at `helperPath`
+/// (this lpmbake's version, the helper's path, size and modification time, the path as
+/// given, the file's bytes); "" when either cannot be read.
 std::string imageCacheKey(const std::string& imagePath, const std::string& helperPath);
+
+/// The image file's version as the file system tells it (device, inode, size,
+/// modification and change times), "" if it cannot be read: taken before the key and
+/// compared before the store, so an image rewritten while the helper decoded it is not
+/// stored under the old bytes' key.
+std::string imageFileStamp(const std::string& imagePath);
 
 /// A descriptor at the start of entry `key`'s stream, or -1 (none, or torn: no trailer,
 /// removed). The caller closes it and checks what it read with cachedImageIntact. Marks

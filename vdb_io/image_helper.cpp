@@ -134,6 +134,7 @@ ImageDecode::ImageDecode(const std::string& path) : path_(path) {
         helper_ = imageHelperPath();
         cache_ = imageCacheFromEnvironment();
         if (cache_) {
+            imageStamp_ = imageFileStamp(path);
             cacheKey_ = imageCacheKey(path, helper_);
             if (!cacheKey_.empty()) cachedFd_ = openCachedImage(*cache_, cacheKey_);
             if (cachedFd_ >= 0) return;
@@ -194,7 +195,9 @@ DecodedImage ImageDecode::wait() {
     DecodedImage image = readDecodedImage(run_->out.fd(), &assignZeroed<float>);
     if (cache_ && !cacheKey_.empty()) {
         const auto t = std::chrono::steady_clock::now();
-        const std::string notStored = storeCachedImage(*cache_, cacheKey_, run_->out.fd());
+        const std::string notStored = imageFileStamp(path_) != imageStamp_
+                                          ? "the file changed while it was decoded"
+                                          : storeCachedImage(*cache_, cacheKey_, run_->out.fd());
         const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
         cacheNote_ = notStored.empty() ? "decoded and stored in the image cache " + cache_->dir.string() + " (" +
                                              std::to_string(int(ms + 0.5)) + " ms)"

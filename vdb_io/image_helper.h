@@ -47,7 +47,7 @@ private:
     std::string startError_;
     std::string path_, helper_;
     std::optional<ImageCacheConfig> cache_;
-    std::string cacheKey_, cacheNote_;
+    std::string cacheKey_, cacheNote_, imageStamp_;
     int cachedFd_ = -1;
     bool cacheHit_ = false;
 };

@@ -337,3 +337,21 @@ TEST(ImageHelper, ACacheThatCannotBeWrittenOnlyMeansNoCache) {
     EXPECT_NE(decode.cacheNote().find("decoded; not cached: cannot create " + blocker + "/images"), std::string::npos)
         << decode.cacheNote();
 }
+
+TEST(ImageHelper, AnImageRewrittenWhileDecodedIsNotCached) {
+    // The key hashes the bytes before the helper reads them: a sky rewritten in between
+    // (an artist saving over it mid-bake) must not be stored under the old bytes' key.
+    const std::string dir = lpmtest::scratchDir(), grey = dir + "/grey.exr";
+    CacheAt cache(dir + "/cache");
+    ::unsetenv("LPMBAKE_IMAGE_HELPER");
+    HelperOverride h(
+        script("rewrites.sh", "touch -d '2001-01-01 00:00' '" + grey + "'\nexec '" + imageHelperPath() + "' \"$@\""));
+    writeGrey(grey, 0.25f);  // after script(), which empties the test's directory
+    ImageDecode decode(grey);
+    (void)decode.wait();
+    EXPECT_FALSE(decode.cacheHit());
+    EXPECT_NE(decode.cacheNote().find("not cached: the file changed while it was decoded"), std::string::npos)
+        << decode.cacheNote();
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator(dir + "/cache", ec)) ADD_FAILURE() << e.path();
+}
