@@ -28,7 +28,7 @@ constexpr char kTrailerMagic[8] = {'L', 'P', 'M', 'I', 'M', 'G', 'C', '1'};
 constexpr std::size_t kTrailerBytes = 16;  // XXH3-64 of the stream, then the magic word
 constexpr std::size_t kChunk = std::size_t(4) << 20;
 const char* kEntrySuffix = ".lpmimg";
-const char* kTempMarker = ".tmp.";
+const char* kTempMarker = ".lpmimg.tmp.";  // only names with it are ever taken for a store's leftovers
 
 /// A file descriptor closed when it goes out of scope.
 struct Fd {

@@ -175,12 +175,15 @@ TEST(ImageCache, TheLeastRecentlyUsedGoFirstOverTheLimit) {
 TEST(ImageCache, TemporaryFilesOfAnInterruptedStoreGoAfterAnHour) {
     const ImageCacheConfig cache{lpmtest::scratchDir() + "/images", 1 << 20};
     fs::create_directories(cache.dir);
-    lpmtest::writeBytes(cache.dir / "old.tmp.1.0", "half an entry");
-    lpmtest::writeBytes(cache.dir / "new.tmp.2.0", "being written");
-    setModified(cache.dir / "old.tmp.1.0", 7200);
+    lpmtest::writeBytes(cache.dir / "old.lpmimg.tmp.1.0", "half an entry");
+    lpmtest::writeBytes(cache.dir / "new.lpmimg.tmp.2.0", "being written");
+    lpmtest::writeBytes(cache.dir / "notes.tmp.txt", "a file of the user's, in a directory given as the cache");
+    setModified(cache.dir / "old.lpmimg.tmp.1.0", 7200);
+    setModified(cache.dir / "notes.tmp.txt", 7200);
     store(cache, "k", "stream");
-    EXPECT_FALSE(fs::exists(cache.dir / "old.tmp.1.0"));
-    EXPECT_TRUE(fs::exists(cache.dir / "new.tmp.2.0"));  // another process may be writing it
+    EXPECT_FALSE(fs::exists(cache.dir / "old.lpmimg.tmp.1.0"));
+    EXPECT_TRUE(fs::exists(cache.dir / "new.lpmimg.tmp.2.0"));  // another process may be writing it
+    EXPECT_TRUE(fs::exists(cache.dir / "notes.tmp.txt"));       // not ours
 }
 
 TEST(ImageCache, ConcurrentStoresLeaveOneWholeEntryAndNoTemporaryFile) {
