@@ -2,9 +2,9 @@
 //   lpm_make_volume plume OUT.vdb [--res N] [--seed S]
 //       a rising turbulent smoke plume in an N x 2N x N box (Y up); N = 112 gives about
 //       1M active voxels in a 2.8M-voxel box, like a production Mantaflow smoke
-//   lpm_make_volume puffs OUT.vdb [--res N] [--count 1|2]
-//       one small noisy puff (radius N/16), or two at opposite corners of an N^3 box:
-//       time must follow the active voxels, not the box
+//   lpm_make_volume puffs OUT.vdb [--res N] [--count 1|2] [--radius R]
+//       one small noisy puff (radius R, default N/16), or two at opposite corners of an
+//       N^3 box: time must follow the active voxels, not the box
 //   lpm_make_volume cloud OUT.vdb [--res N]
 //       a dense cumulus-like cloud filling most of an N^3 box (about 0.25 N^3 active voxels:
 //       N = 256: 4.2M, N = 585: 50M, N = 1024: 268M)
@@ -89,7 +89,7 @@ float cloudDensity(int x, int y, int z, int n, std::uint64_t seed) {
 
 int usage() {
     std::fprintf(stderr,
-                 "usage: lpm_make_volume plume|puffs|cloud OUT.vdb [--res N] [--count 1|2] [--seed S] [--box B]\n");
+                 "usage: lpm_make_volume plume|puffs|cloud OUT.vdb [--res N] [--count 1|2] [--radius R] [--seed S] [--box B]\n");
     return 2;
 }
 
@@ -99,6 +99,7 @@ int main(int argc, char** argv) {
     if (argc < 3) return usage();
     const std::string kind = argv[1], out = argv[2];
     int n = kind == "plume" ? 112 : (kind == "puffs" ? 512 : 256), count = 2, boxSide = 0;
+    float puffRadius = 0;  // 0: N / 16
     std::uint64_t seed = 7;
     for (int i = 3; i + 1 < argc; i += 2) {
         const std::string k = argv[i];
@@ -106,9 +107,11 @@ int main(int argc, char** argv) {
         else if (k == "--count") count = std::atoi(argv[i + 1]);
         else if (k == "--seed") seed = std::strtoull(argv[i + 1], nullptr, 10);
         else if (k == "--box") boxSide = std::atoi(argv[i + 1]);
+        else if (k == "--radius") puffRadius = float(std::atof(argv[i + 1]));
         else return usage();
     }
     if (n < 8 || n > 4096 || count < 1 || count > 2 || boxSide < 0 || boxSide > 8192) return usage();
+    if (!(puffRadius >= 0) || puffRadius * 4 > n) return usage();  // two puffs must fit apart
     openvdb::initialize();
     auto grid = openvdb::FloatGrid::create(0.0f);
     grid->setName("density");
@@ -122,7 +125,7 @@ int main(int argc, char** argv) {
                     if (d > 1e-3f) acc.setValue(openvdb::Coord(x, y, z), d);
                 }
     } else if (kind == "puffs") {
-        const float radius = n / 16.0f, lo = radius * 1.5f, hi = n - radius * 1.5f;
+        const float radius = puffRadius > 0 ? puffRadius : n / 16.0f, lo = radius * 1.5f, hi = n - radius * 1.5f;
         const float centres[2][3] = {{lo, lo, lo}, {hi, hi, hi}};
         for (int p = 0; p < count; ++p) {
             const float* c = centres[p];
