@@ -185,8 +185,8 @@ void LpmSolve::recordPass(int pass, const Tally& t, Clock::time_point start, boo
     res_.segments += t.segments;
     if (s_.progress) {
         char buf[200];
-        std::snprintf(buf, sizeof buf, "pass %d: scattered %.6g (%.3g of injected), %.2f s", pass, ps.scattered,
-                      res_.injected > 0 ? ps.scattered / res_.injected : 0.0, ps.seconds);
+        std::snprintf(buf, sizeof buf, "pass %d: scattered %.6g (%.3g of the input), %.2f s", pass, ps.scattered,
+                      res_.input > 0 ? ps.scattered / res_.input : 0.0, ps.seconds);
         s_.progress(buf);
     }
 }
@@ -234,14 +234,14 @@ bool LpmSolve::extrapolateTail(double last, double ratio) {
     if (!(before > 0)) return false;
     const double drift = std::fabs(ratio - res_.passes[n - 2].scattered / before);
     const double error = 3.0 * last * drift / ((1.0 - ratio) * (1.0 - ratio));
-    if (!(error <= s_.tolerance * res_.injected)) return false;
+    if (!(error <= s_.tolerance * res_.input)) return false;
     tailFactor_ = float(1.0 / (1.0 - ratio));
     extrapolatedError_ = error;
     char buf[260];
     std::snprintf(buf, sizeof buf,
                   "geometric tail after pass %d: energy ratio per pass %.4f (drift %.2g), the sources still to come "
                   "(%.3g of the input) added as that series; estimated error %.2g of the input",
-                  pass_ - 1, ratio, drift, last * ratio / (1.0 - ratio) / res_.injected, error / res_.injected);
+                  pass_ - 1, ratio, drift, last * ratio / (1.0 - ratio) / res_.input, error / res_.input);
     res_.decisions.push_back(buf);
     return true;
 }
@@ -258,7 +258,7 @@ void LpmSolve::startFromSource() {
                 power += double(u) * m_.sigmaT[voxelOf(x)] * m_.albedo[c] * ff_->binWeight(d) * V_;
             }
     if (M_ == 1) next_ = std::move(*initialSource_);
-    res_.injected = power / 3.0;
+    res_.injected = res_.input = power / 3.0;
     PassStats ps;
     ps.injected = ps.scattered = res_.injected;
     res_.passes.push_back(ps);
@@ -278,6 +278,7 @@ void LpmSolve::passZero() {
     if (sep_) runSeparablePass(nullptr, t, &jobs);
     else runner_->run(jobs, r_, t, true, next_);
     res_.injected = Tally::mean(t.injected);
+    res_.input = Tally::mean(t.absorbed) + Tally::mean(t.scattered);
     if (s_.sunTerms) {
         const auto ts = Clock::now();
         sweepSunTerms(m_, suns, lights_.suns.size(), jobs, r_, M_, V_, res_);
@@ -297,7 +298,7 @@ bool LpmSolve::iterate() {
         const double prevP = res_.passes.size() >= 2 ? res_.passes[res_.passes.size() - 2].scattered : 0.0;
         const double ratio = prevP > 0 ? last / prevP : 0.0;
         const double tail = last * std::max(1.0, ratio < 1.0 ? ratio / (1.0 - ratio) : 1e9);
-        if (res_.injected <= 0 || tail <= s_.tolerance * res_.injected || extrapolateTail(last, ratio)) {
+        if (res_.input <= 0 || tail <= s_.tolerance * res_.input || extrapolateTail(last, ratio)) {
             res_.converged = true;
             return false;
         }
@@ -309,7 +310,7 @@ bool LpmSolve::iterate() {
         if (plan_.krylov && !sep_ && pass_ >= 4 && ratio > 0.8 && ratio < 1.0) {
             // Passes j until the stop test above holds: last ratio^j rho/(1-rho) <= tol injected.
             const double more =
-                std::log(s_.tolerance * res_.injected / (last * (ratio / (1.0 - ratio)))) / std::log(ratio);
+                std::log(s_.tolerance * res_.input / (last * (ratio / (1.0 - ratio)))) / std::log(ratio);
             if (more > plan_.krylovAfter) {
                 char buf[240];
                 std::snprintf(buf, sizeof buf,
@@ -365,7 +366,7 @@ LpmResult LpmSolve::run() {
         addToSourceSum(next_, tailFactor_);  // the remainder not propagated (unless it is the initial source)
     if (plan_.linearSource) clampNegativeLinear();
     res_.unshot = extrapolatedError_ >= 0 ? extrapolatedError_ : res_.passes.back().scattered;
-    res_.residual = res_.injected > 0 ? res_.unshot / res_.injected : 0.0;
+    res_.residual = res_.input > 0 ? res_.unshot / res_.input : 0.0;
     char buf[200];
     std::snprintf(buf, sizeof buf, "%s after %d passes: residual %.3g (tolerance %.3g)",
                   res_.converged ? "converged" : "stopped at the order cap", int(res_.passes.size()), res_.residual,

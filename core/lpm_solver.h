@@ -39,10 +39,16 @@ struct LpmResult {
     std::vector<std::uint32_t> shRow;
     std::vector<PassStats> passes;
     double injected = 0;  ///< external power (environment, suns, emission), mean over RGB
+    /// The tolerance's reference, "the input": the power the medium takes from the external
+    /// light (absorbed + scattered in pass 0), mean over RGB; a coarse continuation's, its
+    /// initial source's power. Not `injected`, which counts every ray entering the block:
+    /// light that crosses empty space around a medium would loosen the stop test by the
+    /// block's size (docs/lpm_solver.md, "The stop test's reference").
+    double input = 0;
     double absorbed = 0;  ///< summed over passes
     double escaped = 0;   ///< summed over passes
     double unshot = 0;    ///< scattered power of the last pass, not propagated further
-    double residual = 0;  ///< unshot / injected
+    double residual = 0;  ///< unshot / input
     bool converged = false;
     int directionCount = 0, binCount = 0;
     std::uint64_t segments = 0;  ///< ray-segment updates performed

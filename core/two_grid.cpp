@@ -5,7 +5,7 @@
 // piecewise constant, which keeps its power) as the sum r gives rise to. One fine pass of
 // E deposits S at full resolution; its new residual r' = r + K E - E = K E - tail is what
 // the coarse grid got wrong, and the next cycle distributes it, until its power falls
-// below the tolerance (at most kCycles cycles).
+// below the tolerance (at most kMaxCycles cycles).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -21,6 +21,12 @@
 namespace lpm {
 
 namespace {
+
+/// Cycles at most. Three were enough while the tolerance was a share of the light entering
+/// the block; as a share of the light the medium takes (stricter where light crosses the
+/// block without meeting it) a thick cloud at albedo 0.99 needs a fourth
+/// (SeparableSource.ThickHighAlbedoCycleConverges). Each cycle costs one fine pass.
+constexpr int kMaxCycles = 5;
 
 /// The coarse grid's settings: the fine solve's bins (the restricted source is in them) and
 /// rays, the plan's coarse directions, GMRES earlier (coarse passes are cheap next to the
@@ -60,7 +66,7 @@ std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, con
                                           std::vector<float> uc, double rPower, int cycle, int& p, TwoGridCount& count,
                                           const MassRows* rows) {
     cs.maxOrders = std::max(1, s_.maxOrders - p);
-    cs.tolerance = std::fabs(rPower) > 0 ? s_.tolerance * res_.injected / std::fabs(rPower) : s_.tolerance;
+    cs.tolerance = std::fabs(rPower) > 0 ? s_.tolerance * res_.input / std::fabs(rPower) : s_.tolerance;
     const size_t width = size_t(nb_) * 3;
     const bool byVoxel = rows && coarsePlan.linearSource;
     if (byVoxel) uc = expandRows(*rows, uc, width);
@@ -81,13 +87,13 @@ std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, con
 
 void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
                              double rPower, Clock::time_point start) {
-    res_.converged = count.converged && std::fabs(rPower) <= s_.tolerance * res_.injected;
+    res_.converged = count.converged && std::fabs(rPower) <= s_.tolerance * res_.input;
     char buf[300];
     std::snprintf(buf, sizeof buf,
                   "two-grid: coarse grid %dx%dx%d (%zu stored voxels) with %d directions per face, %d cycle(s) of "
                   "coarse orders and one fine pass, %d coarse passes; source left %.3g of the input",
                   mc.nx, mc.ny, mc.nz, mc.voxelCount(), cs.directionsPerFace, cycles, count.coarsePasses,
-                  res_.injected > 0 ? std::fabs(rPower) / res_.injected : 0.0);
+                  res_.input > 0 ? std::fabs(rPower) / res_.input : 0.0);
     if (s_.progress)
         s_.progress("two-grid: " + std::to_string(std::chrono::duration<double>(Clock::now() - start).count()) + " s");
     res_.decisions.push_back(buf);
@@ -99,7 +105,6 @@ void LpmSolve::continueOnCoarse(int firstPass) {
         continueOnCoarseSeparable(firstPass);
         return;
     }
-    constexpr int kCycles = 3;
     const auto tp = Clock::now();
     const Medium mc = coarsen(m_);
     LpmSettings cs = coarseSettings(s_, plan_, cache_, N_);
@@ -115,7 +120,7 @@ void LpmSolve::continueOnCoarse(int firstPass) {
     int cycles = 0, p = firstPass;
     TwoGridCount count;
     double rPower = res_.passes.back().scattered;
-    for (; cycles < kCycles && p < s_.maxOrders; ++cycles) {
+    for (; cycles < kMaxCycles && p < s_.maxOrders; ++cycles) {
         runner_->releaseBuffers();  // the coarse solve needs the memory more than the next fine pass its pages
         // The heap's free pages stay (unlike the separable cycle's): giving them back saved
         // 0-15 MiB here for 8k more page faults (docs/performance.md, session 18).
@@ -133,7 +138,7 @@ void LpmSolve::continueOnCoarse(int firstPass) {
         addCoarse(m_, mc, tailCoarse, nb_, M_, -1.0f, r);  // r' = K E - tail
         rPower = sourcePower(r);
         res_.passes.back().scattered = std::fabs(rPower);
-        if (std::fabs(rPower) <= s_.tolerance * res_.injected) {
+        if (std::fabs(rPower) <= s_.tolerance * res_.input) {
             ++cycles;
             break;
         }
@@ -145,7 +150,6 @@ void LpmSolve::continueOnCoarse(int firstPass) {
 // held separably, so no fine buffer of bins is ever allocated; the tail is E's coarse
 // offset, and r' = K E - tail takes it from K E's coarse shape (r never holds an offset).
 void LpmSolve::continueOnCoarseSeparable(int firstPass) {
-    constexpr int kCycles = 3;
     const auto tp = Clock::now();
     const Medium& mc = sep_->coarse;
     LpmSettings cs = coarseSettings(s_, plan_, cache_, N_);
@@ -155,7 +159,7 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
     int cycles = 0, p = firstPass;
     TwoGridCount count;
     double rPower = res_.passes.back().scattered;
-    for (; cycles < kCycles && p < s_.maxOrders; ++cycles) {
+    for (; cycles < kMaxCycles && p < s_.maxOrders; ++cycles) {
         runner_->releaseBuffers();  // and the bin source: the coarse solve is the peak
         sep_->binSource = std::vector<Bf16>();
         // So does the SH result, which waits with its directional bands in half precision
@@ -183,7 +187,7 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         r = std::move(sep_->next);
         rPower = r.power(sep_->map, sep_->binWeight, m_.albedo, V_);
         res_.passes.back().scattered = std::fabs(rPower);
-        if (std::fabs(rPower) <= s_.tolerance * res_.injected) {
+        if (std::fabs(rPower) <= s_.tolerance * res_.input) {
             ++cycles;
             break;
         }
