@@ -88,8 +88,9 @@ float cloudDensity(int x, int y, int z, int n, std::uint64_t seed) {
 }
 
 int usage() {
-    std::fprintf(stderr,
-                 "usage: lpm_make_volume plume|puffs|cloud OUT.vdb [--res N] [--count 1|2] [--radius R] [--seed S] [--box B]\n");
+    std::fprintf(
+        stderr,
+        "usage: lpm_make_volume plume|puffs|cloud OUT.vdb [--res N] [--count 1|2] [--radius R] [--seed S] [--box B]\n");
     return 2;
 }
 

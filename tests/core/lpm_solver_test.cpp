@@ -383,7 +383,8 @@ Medium ballInBlock(int n) {
         for (int y = 0; y < 16; ++y)
             for (int x = 0; x < 16; ++x)
                 if (density(x, y, z) > 0)
-                    active[size_t(x / 8) + size_t(probe.tilesX()) * (size_t(y / 8) + size_t(probe.tilesY()) * (z / 8))] = 1;
+                    active[size_t(x / 8) +
+                           size_t(probe.tilesX()) * (size_t(y / 8) + size_t(probe.tilesY()) * (z / 8))] = 1;
     Medium m;
     m.allocate(n, n, n, &active);
     for (int z = 0; z < 16; ++z)
