@@ -312,7 +312,8 @@ void addSolverOptions(CLI::App& app, Args& a) {
         ->default_val(a.b.solver.shOrder)
         ->group(gS);
     app.add_option("--tolerance", a.b.solver.tolerance,
-                   "stop when the scattered power still to come is below this share of the input")
+                   "stop when the scattered power still to come is below this share of the input (the power the "
+                   "medium takes from the lights plus what it emits)")
         ->default_val(a.b.solver.tolerance)
         ->group(gS);
     app.add_option("--max-orders", a.b.solver.maxOrders, "at most this many scattering orders")

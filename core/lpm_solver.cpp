@@ -31,6 +31,15 @@ namespace lpm {
 
 namespace {
 
+/// The power a medium's emission puts in, mean over RGB: 4 pi sum sigma_a L_e V.
+double emittedPower(const Medium& m) {
+    if (!m.hasEmission()) return 0.0;
+    double p = 0;
+    for (size_t v = 0; v < m.voxelCount(); ++v)
+        for (int c = 0; c < 3; ++c) p += double(m.sigmaT[v]) * (1.0 - m.albedo[c]) * m.emission[v][c];
+    return kFourPi * p * m.voxelVolume() / 3.0;
+}
+
 double secondsSince(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -278,7 +287,7 @@ void LpmSolve::passZero() {
     if (sep_) runSeparablePass(nullptr, t, &jobs);
     else runner_->run(jobs, r_, t, true, next_);
     res_.injected = Tally::mean(t.injected);
-    res_.input = Tally::mean(t.absorbed) + Tally::mean(t.scattered);
+    res_.input = Tally::mean(t.absorbed) + Tally::mean(t.scattered) + (plan_.emissionPass ? emittedPower(m_) : 0.0);
     if (s_.sunTerms) {
         const auto ts = Clock::now();
         sweepSunTerms(m_, suns, lights_.suns.size(), jobs, r_, M_, V_, res_);

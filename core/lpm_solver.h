@@ -39,11 +39,12 @@ struct LpmResult {
     std::vector<std::uint32_t> shRow;
     std::vector<PassStats> passes;
     double injected = 0;  ///< external power (environment, suns, emission), mean over RGB
-    /// The tolerance's reference, "the input": the power the medium takes from the external
-    /// light (absorbed + scattered in pass 0), mean over RGB; a coarse continuation's, its
-    /// initial source's power. Not `injected`, which counts every ray entering the block:
-    /// light that crosses empty space around a medium would loosen the stop test by the
-    /// block's size (docs/lpm_solver.md, "The stop test's reference").
+    /// The tolerance's reference, "the input": the volume's own light budget, the power it
+    /// takes from the light in pass 0 (absorbed + scattered) plus the power it emits, mean
+    /// over RGB; a coarse continuation's, its initial source's power. Not `injected`, which
+    /// counts every ray entering the block: light that crosses empty space around a medium
+    /// would loosen the stop test by the block's size (docs/lpm_solver.md, "The stop
+    /// test's reference").
     double input = 0;
     double absorbed = 0;  ///< summed over passes
     double escaped = 0;   ///< summed over passes

@@ -763,19 +763,20 @@ private:
         return block_[row] + size_t(c) * size_t(cap_[row]) + size_t(col - org_[row]);
     }
 
-    // Ray i's radiance in channel c of a written row: its lane inside the row's valid
-    // columns, the boundary radiance outside them.
-    float ray(size_t row, int c, int i) { return i >= vlo_[row] && i < vhi_[row] ? *at(row, c, i) : bnd_[c]; }
+    // Radiance of a written row's rays in columns [a, b) of channel c: its valid columns
+    // read, the rest the boundary radiance (one product): O(valid columns), not O(b - a).
+    double sumColumns(size_t row, int c, int a, int b) {
+        const int lo = std::clamp(vlo_[row], a, b), hi = std::clamp(vhi_[row], lo, b);
+        double sum = double(bnd_[c]) * double((b - a) - (hi - lo));
+        const float* x = hi > lo ? at(row, c, lo) : nullptr;
+        for (int i = 0; i < hi - lo; ++i) sum += x[i];
+        return sum;
+    }
 
-    // Escaped radiance of every ray of a row, summed in column order (pristine: nu bnd).
+    // Escaped radiance of every ray of a row (pristine: nu bnd).
     void tallyRowEscape(size_t row) {
-        for (int c = 0; c < 3; ++c) {
-            if (pristine_[row]) {
-                esc_[c] += double(bnd_[c]) * g_.nu;
-                continue;
-            }
-            for (int i = 0; i < g_.nu; ++i) esc_[c] += ray(row, c, i);
-        }
+        for (int c = 0; c < 3; ++c)
+            esc_[c] += pristine_[row] ? double(bnd_[c]) * g_.nu : sumColumns(row, c, 0, g_.nu);
     }
 
     // A pristine ray row (every ray holding the boundary radiance, never written) becomes
@@ -877,12 +878,13 @@ private:
         const int nu = g_.nu;
         while (k > 0) {
             const int step = std::min(k, nu);
-            for (int i = 0; i < step; ++i) {  // the leaving rays, in the order of the reference
-                const int col = g_.su > 0 ? nu - 1 - i : i;
-                for (int c = 0; c < 3; ++c) {
-                    esc_[c] += ray(row, c, col);
-                    inj_[c] += bnd_[c];
-                }
+            // The leaving rays: columns [nu - step, nu) or [0, step). Only the valid ones are
+            // read; the others hold the boundary radiance, added as one product (the row's
+            // length is the block's, a stray voxel's row would cost O(nu) per shift).
+            const int a = g_.su > 0 ? nu - step : 0;
+            for (int c = 0; c < 3; ++c) {
+                esc_[c] += sumColumns(row, c, a, a + step);
+                inj_[c] += double(bnd_[c]) * step;
             }
             int& lo = vlo_[row];
             int& hi = vhi_[row];

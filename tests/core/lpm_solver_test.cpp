@@ -91,6 +91,8 @@ TEST(LpmSolver, EnergyBalanceWithEmission) {
         emitted += kFourPi * m.sigmaT[i] * (1 - 0.7) * m.emission[i].average() * m.voxelVolume();
     EXPECT_NEAR(r.injected / emitted, 1.0, 1e-4);
     EXPECT_NEAR((r.absorbed + r.escaped + r.unshot) / r.injected, 1.0, 1e-3);
+    // The stop test's reference: what the medium emits plus what it takes in pass 0.
+    EXPECT_NEAR(r.input, emitted + r.passes[0].absorbed + r.passes[0].scattered, 1e-4 * r.input);
 }
 
 class WhiteFurnace : public ::testing::TestWithParam<double> {};
