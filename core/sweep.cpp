@@ -775,8 +775,7 @@ private:
 
     // Escaped radiance of every ray of a row (pristine: nu bnd).
     void tallyRowEscape(size_t row) {
-        for (int c = 0; c < 3; ++c)
-            esc_[c] += pristine_[row] ? double(bnd_[c]) * g_.nu : sumColumns(row, c, 0, g_.nu);
+        for (int c = 0; c < 3; ++c) esc_[c] += pristine_[row] ? double(bnd_[c]) * g_.nu : sumColumns(row, c, 0, g_.nu);
     }
 
     // A pristine ray row (every ray holding the boundary radiance, never written) becomes
