@@ -10,11 +10,11 @@ namespace lpm {
 const std::vector<QualityPreset>& qualityPresets() {
     // The measured figures: docs/accuracy.md, "Presets" (six scenes, against Monte Carlo).
     static const std::vector<QualityPreset> presets = {
-        {"preview", 2, 1, 1e-2, -1, "n = 2, r = 1, tolerance 1e-2: 2-5% image error, 1.7-3x faster than default"},
+        {"preview", 2, 1, 1e-2, -1, "n = 2, r = 1, tolerance 1e-2: 2-6% image error, 1.4-2.9x faster than default"},
         {"default", 4, 2, 1e-3, -1,
-         "n = 4, r = 2, tolerance 1e-3 (the defaults): 0.4-2% band-0 error on thin and moderate media"},
+         "n = 4, r = 2, tolerance 1e-3 (the defaults): 0.4-2.3% band-0 error on thin and moderate media"},
         {"production", 6, 2, 1e-4, -1,
-         "n = 6, r = 2, tolerance 1e-4: 0.1-1.2% on thin media, 1.4-3.5x the default's time"},
+         "n = 6, r = 2, tolerance 1e-4: 0.1-1.2% on thin media, 2.2-3.7x the default's time"},
     };
     return presets;
 }
