@@ -317,7 +317,7 @@ bool LpmSolve::iterate() {
             return false;
         }
         if (plan_.krylov && !sep_ && pass_ >= 4 && ratio > 0.8 && ratio < 1.0) {
-            // Passes j until the stop test above holds: last ratio^j rho/(1-rho) <= tol injected.
+            // Passes j until the stop test above holds: last ratio^j rho/(1-rho) <= tol input.
             const double more =
                 std::log(s_.tolerance * res_.input / (last * (ratio / (1.0 - ratio)))) / std::log(ratio);
             if (more > plan_.krylovAfter) {
