@@ -308,15 +308,47 @@ struct AxisFrame {
         w.nA = std::min(K, na - layer * K);
         return w;
     }
+};
+
+// First and last allocated tile along u of every tile row (layer, tv): built once from the
+// stored tiles' list (O(stored tiles + rows), not O(tiles of the box)), so the planes'
+// set-up, gathers and scatters cost nothing for the empty space of a large box.
+class TileRowExtents {
+public:
+    explicit TileRowExtents(const AxisFrame& f) : tnv_(f.tnv) {
+        const size_t rows = size_t(f.tna) * size_t(f.tnv);
+        if (!f.m.sparse()) {
+            first_.assign(rows, 0);
+            last_.assign(rows, f.tnu - 1);
+            layerAny_.assign(size_t(f.tna), 1);
+            return;
+        }
+        first_.assign(rows, -1);
+        last_.assign(rows, -1);
+        layerAny_.assign(size_t(f.tna), 0);
+        const size_t tx = size_t(f.m.tilesX()), ty = size_t(f.m.tilesY());
+        for (const std::int32_t t : f.m.slotTile) {
+            const int t3[3] = {int(size_t(t) % tx), int(size_t(t) / tx % ty), int(size_t(t) / (tx * ty))};
+            const int layer = t3[f.a], tu = t3[f.u];
+            const size_t row = size_t(layer) * size_t(f.tnv) + size_t(t3[f.v]);
+            first_[row] = first_[row] < 0 ? tu : std::min(first_[row], tu);
+            last_[row] = std::max(last_[row], tu);
+            layerAny_[size_t(layer)] = 1;
+        }
+    }
     // First and last allocated tile of tile row tv in a layer (-1, -1 when none).
     void rowExtent(int layer, int tv, int& first, int& last) const {
-        first = last = -1;
-        for (int tu = 0; tu < tnu; ++tu)
-            if (tileSlot(layer, tu, tv) != -2) {
-                if (first < 0) first = tu;
-                last = tu;
-            }
+        const size_t row = size_t(layer) * size_t(tnv_) + size_t(tv);
+        first = first_[row];
+        last = last_[row];
     }
+    // Whether a tile layer holds any allocated tile.
+    bool layerAny(int layer) const { return layerAny_[size_t(layer)] != 0; }
+
+private:
+    int tnv_;
+    std::vector<int> first_, last_;     // per tile row (layer, tv)
+    std::vector<std::uint8_t> layerAny_;  // per tile layer
 };
 
 // Plane storage of one tile row tv in one tile layer: the chunks of tiles first ..
@@ -452,14 +484,14 @@ class LayerPlanes {
 public:
     static constexpr int K = Medium::kTile;
 
-    LayerPlanes(const Medium& m, int axis) : f_(m, axis) {
+    LayerPlanes(const Medium& m, int axis) : f_(m, axis), ext_(f_) {
         rows_.assign(size_t(f_.tnv), PlaneRow{});
         size_t total = 0;
         for (int tv = 0; tv < f_.tnv; ++tv) {
             int first = f_.tnu, last = -1;
             for (int layer = 0; layer < f_.tna; ++layer) {
                 int lf, ll;
-                f_.rowExtent(layer, tv, lf, ll);
+                ext_.rowExtent(layer, tv, lf, ll);
                 if (lf < 0) continue;
                 first = std::min(first, lf);
                 last = std::max(last, ll);
@@ -483,7 +515,7 @@ public:
         occupied_.clear();
         for (int tv = 0; tv < f_.tnv; ++tv) {
             int first, last;
-            f_.rowExtent(layer, tv, first, last);
+            ext_.rowExtent(layer, tv, first, last);
             any = any || first >= 0;
             const int lo = first < 0 ? 0 : first * K, hi = first < 0 ? 0 : std::min(f_.nu, (last + 1) * K);
             for (int cv = tv * K; cv < std::min(f_.nv, (tv + 1) * K); ++cv) {
@@ -504,9 +536,12 @@ public:
     // (sweepStepGroup).
     template <bool Assign = false, class Out = float>
     void scatter(int layer, float k, Out* phi, double sca[3], double src[3], bool clear = false) {
-        for (int tv = 0; tv < f_.tnv; ++tv)
-            for (int tu = 0; tu < f_.tnu; ++tu)
+        for (int tv = 0; tv < f_.tnv; ++tv) {
+            int first, last;
+            ext_.rowExtent(layer, tv, first, last);
+            for (int tu = std::max(first, 0); tu <= last; ++tu)
                 scatterTile<Assign>(f_, rows_.data(), P_.data(), layer, tu, tv, k, phi, sca, src, clear);
+        }
     }
 
     const PlaneRow* rows() const { return rows_.data(); }
@@ -520,6 +555,7 @@ public:
 
 private:
     AxisFrame f_;
+    TileRowExtents ext_;
     std::vector<PlaneRow> rows_;              // per tile row, over all layers
     std::vector<float> P_;                    // the current tile layer
     std::vector<float> range_;                // per chunk of P_: smallest and largest sigma
@@ -665,6 +701,7 @@ private:
             crossings(stU_[j], g_.du, lamU_[j]);
             crossings(stV_[j], g_.dv, lamV_[j]);
         }
+        if (!any) return crossEmptySlice();
         for (int jv = 0; jv < r; ++jv)
             for (int ju = 0; ju < r; ++ju) mergeEvents(lamU_[ju], lamV_[jv], g_.sliceLen, ev_[size_t(jv * r + ju)]);
         slice_ = ia % K;
@@ -748,6 +785,31 @@ private:
                 shift = wrap(shift + g_.sv, nv);
             }
         }
+    }
+
+    // A slice of an empty tile layer (no allocated voxels): every row crosses it unchanged,
+    // so only the bookkeeping of crossUntouchedRows is left, taken from the crossings
+    // directly (no merged events): a class's u crossings before each of its v crossings
+    // (u first on ties, as mergeEvents orders them).
+    void crossEmptySlice() {
+        const int r = g_.r, nv = g_.nv, rr = r * r;
+        const int edge = g_.sv > 0 ? nv - 1 : 0;
+        ++stamp_;  // no row is a candidate of this slice
+        for (int cls = 0; cls < rr; ++cls) {
+            const std::vector<double>& lu = lamU_[cls % r];
+            const std::vector<double>& lv = lamV_[cls / r];
+            uCount_[cls] = int(lu.size());
+            int shift = SV_[cls / r];
+            size_t uSoFar = 0;
+            for (const double l : lv) {
+                while (uSoFar < lu.size() && lu[uSoFar] <= l) ++uSoFar;
+                const size_t row = size_t(wrap(edge - shift, nv)) * rr + size_t(cls);
+                syncPending(row, int(uSoFar));
+                leaveRow(row);
+                shift = wrap(shift + g_.sv, nv);
+            }
+        }
+        for (int cls = 0; cls < rr; ++cls) classU_[cls] += uCount_[cls];
     }
 
     // Brings a row's pending column shifts up to date: the u crossings its class made
