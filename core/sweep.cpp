@@ -347,7 +347,7 @@ public:
 
 private:
     int tnv_;
-    std::vector<int> first_, last_;     // per tile row (layer, tv)
+    std::vector<int> first_, last_;       // per tile row (layer, tv)
     std::vector<std::uint8_t> layerAny_;  // per tile layer
 };
 
