@@ -269,9 +269,9 @@ LpmResult solveStage(const BakeOptions& o, VolumeInput& vol, const Lights& light
     const auto t = Clock::now();
     LpmResult res;
     if (!vol.empty) {
-        // Directional SH is held only where the bake writes it (core/sh_rows.h): 12-20 ms
-        // on 1M voxels, so only when the plan keeps directional SH.
-        if (planLpm(vol.medium, lights, settings).shOrder > 0) markWantedS(vol);
+        // The solver holds directional SH only where the bake writes it (core/sh_rows.h),
+        // and its sweeps skip the empty voxels nobody reads (core/sweep.cpp, dead chunks).
+        markWantedS(vol);
         if (log.verbosity >= 2)
             for (const std::string& line : planLpm(vol.medium, lights, settings).lines(true))
                 log.debug("plan: " + line);

@@ -38,7 +38,9 @@ struct Medium {
     /// Empty: the caller reads S at every stored voxel. Otherwise one flag per stored voxel,
     /// 1 where the caller reads S (a bake: the voxels it writes, docs/output_format.md
     /// "Topology"); the solver may hold the SH result of the others nowhere and return 0
-    /// there (core/sh_rows.h). Cleared by allocate().
+    /// there (core/sh_rows.h), and its sweeps skip the chunks of voxels with neither
+    /// extinction nor a wanted voxel (core/sweep.cpp): S of an unwanted voxel without
+    /// extinction is then not the light there. Cleared by allocate().
     std::vector<std::uint8_t> wantedS;
 
     bool sparse() const { return !tileSlot.empty(); }

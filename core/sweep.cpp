@@ -366,27 +366,35 @@ inline size_t planeIndex(const PlaneRow* rows, int cv, int s, int cu) {
     return pr.base + (size_t((cv % K) * K + s) * pr.width + size_t(cu / K - pr.first)) * kChunk + size_t(cu % K);
 }
 
-// What a gather reads: the medium's sigma and the job's source (q = sigma srcScale src).
+// What a gather reads: the medium's sigma, the job's source (q = sigma srcScale src) and
+// the voxels whose deposits the caller reads (Medium::wantedS; null: every stored voxel).
 struct GatherSource {
     const float* sigma;
     const float* src;
     const Bf16* srcBf16;
+    const std::uint8_t* wanted;
     size_t stride;
     float scale[3];
     GatherSource(const Medium& m, const Job& job)
         : sigma(m.sigmaT.data()), src(job.src), srcBf16(job.srcBf16),
-          stride(job.srcStride), scale{job.srcScale.r, job.srcScale.g, job.srcScale.b} {}
+          wanted(m.wantedS.empty() ? nullptr : m.wantedS.data()), stride(job.srcStride),
+          scale{job.srcScale.r, job.srcScale.g, job.srcScale.b} {}
 };
 
 // One chunk (the nU voxels of a tile row segment from storage index x0, stride sU) into
 // the planes at q: sigma, the source, deposits zeroed, 1/sigma; its smallest and largest
-// sigma into range. empty: an unallocated tile inside a span (reads as empty).
-inline void gatherChunk(const GatherSource& g, bool empty, size_t x0, size_t sU, int nU, float* q, float* range) {
+// sigma into range. empty: an unallocated tile inside a span (reads as empty). Returns
+// whether the chunk is live: it holds extinction or a voxel whose deposit is read. Rays
+// cross a dead chunk unchanged and nothing reads its deposits (no sigma to scatter them,
+// no caller), so the sweep may skip it (docs/performance.md, "Dead chunks").
+inline bool gatherChunk(const GatherSource& g, bool empty, size_t x0, size_t sU, int nU, float* q, float* range) {
     std::fill_n(q, kChunk, 0.0f);
     range[0] = range[1] = 0.0f;
-    if (empty) return;
+    if (empty) return false;
+    bool wanted = !g.wanted;
     for (int lu = 0; lu < nU; ++lu) {
         const size_t x = x0 + size_t(lu) * sU;
+        if (g.wanted) wanted = wanted || g.wanted[x];
         const float sg = g.sigma[x];
         q[lu] = sg;
         if (g.src)
@@ -399,15 +407,25 @@ inline void gatherChunk(const GatherSource& g, bool empty, size_t x0, size_t sU,
     for (int i = 0; i < kLanes; ++i) q[7 * kLanes + i] = q[i] > 0 ? 1.0f / q[i] : 0.0f;
     range[0] = *std::min_element(q, q + kLanes);
     range[1] = *std::max_element(q, q + kLanes);
+    return wanted || range[1] > 0;
 }
+
+// The columns a sweep crosses in each (voxel row, slice) of a tile layer: from the first
+// live chunk to the last (tile-aligned start; the end clipped to the block), lo = hi when
+// none is live. Index: voxel row cv times the tile size plus the slice within the layer.
+struct LiveSpans {
+    int* lo;
+    int* hi;
+};
 
 // Tiles first..last of tile row tv into the planes (and each chunk's sigma range into R,
 // 2 floats a chunk), in plane order (voxel row, slice, tile), so the writes stream through
-// consecutive chunks; the tiles' reads (a few KB each) stay in cache across the row.
+// consecutive chunks; the tiles' reads (a few KB each) stay in cache across the row. Sets
+// the live spans of the row's (voxel row, slice) pairs.
 LPM_SIMD_CLONES
 void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* rows, float* P, float* R, int layer,
                    int tv, int first, int last, std::vector<AxisFrame::TileWalk>& walks,
-                   std::vector<std::uint8_t>& empty) {
+                   std::vector<std::uint8_t>& empty, LiveSpans spans) {
     constexpr int K = Medium::kTile;
     const int n = last - first + 1;
     walks.resize(size_t(n));
@@ -421,12 +439,19 @@ void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* ro
     for (int lv = 0; lv < nV; ++lv)
         for (int s = 0; s < nA; ++s) {
             const size_t at = planeIndex(rows, tv * K + lv, s, first * K);
+            int liveFirst = -1, liveLast = -1;
             for (int i = 0; i < n; ++i) {
                 const AxisFrame::TileWalk& w = walks[size_t(i)];
                 const size_t chunk = at / kChunk + size_t(i);
-                gatherChunk(g, empty[size_t(i)], w.base + size_t(s) * w.sA + size_t(lv) * w.sV, w.sU, w.nU,
-                            &P[chunk * kChunk], &R[2 * chunk]);
+                if (gatherChunk(g, empty[size_t(i)], w.base + size_t(s) * w.sA + size_t(lv) * w.sV, w.sU, w.nU,
+                                &P[chunk * kChunk], &R[2 * chunk])) {
+                    if (liveFirst < 0) liveFirst = i;
+                    liveLast = i;
+                }
             }
+            const size_t at2 = size_t(tv * K + lv) * K + size_t(s);
+            spans.lo[at2] = liveFirst < 0 ? 0 : (first + liveFirst) * K;
+            spans.hi[at2] = liveFirst < 0 ? 0 : std::min(f.nu, (first + liveLast + 1) * K);
         }
 }
 
@@ -504,8 +529,8 @@ public:
         }
         assignZeroed(P_, total);
         assignZeroed(range_, 2 * (total / kChunk));
-        spanLo_.assign(size_t(f_.nv), 0);
-        spanHi_.assign(size_t(f_.nv), 0);
+        spanLo_.assign(size_t(f_.nv) * K, 0);
+        spanHi_.assign(size_t(f_.nv) * K, 0);
     }
 
     // Fills the layer's planes over the span of allocated tiles of each tile row and sets
@@ -517,15 +542,18 @@ public:
             int first, last;
             ext_.rowExtent(layer, tv, first, last);
             any = any || first >= 0;
-            const int lo = first < 0 ? 0 : first * K, hi = first < 0 ? 0 : std::min(f_.nu, (last + 1) * K);
-            for (int cv = tv * K; cv < std::min(f_.nv, (tv + 1) * K); ++cv) {
-                spanLo_[cv] = lo;
-                spanHi_[cv] = hi;
-                if (lo < hi) occupied_.push_back(cv);
-            }
-            if (first >= 0)
-                gatherTileRow(f_, GatherSource(f_.m, srcJob), rows_.data(), P_.data(), range_.data(), layer, tv, first,
-                              last, walks_, empty_);
+            const int cv0 = tv * K, cv1 = std::min(f_.nv, (tv + 1) * K);
+            std::fill(spanLo_.begin() + cv0 * K, spanLo_.begin() + cv1 * K, 0);
+            std::fill(spanHi_.begin() + cv0 * K, spanHi_.begin() + cv1 * K, 0);
+            if (first < 0) continue;
+            gatherTileRow(f_, GatherSource(f_.m, srcJob), rows_.data(), P_.data(), range_.data(), layer, tv, first,
+                          last, walks_, empty_, LiveSpans{spanLo_.data(), spanHi_.data()});
+            for (int cv = cv0; cv < cv1; ++cv)
+                for (int s = 0; s < K; ++s)
+                    if (spanLo_[size_t(cv) * K + s] < spanHi_[size_t(cv) * K + s]) {
+                        occupied_.push_back(cv);
+                        break;
+                    }
         }
         return any;
     }
@@ -548,9 +576,11 @@ public:
     float* data() { return P_.data(); }
     /// Per chunk of data(): its smallest and largest sigma.
     const float* sigRanges() const { return range_.data(); }
+    /// Per (voxel row, slice of the layer), index cv K + s: the live columns [lo, hi)
+    /// (LiveSpans); lo is tile-aligned.
     const int* spanLo() const { return spanLo_.data(); }
     const int* spanHi() const { return spanHi_.data(); }
-    /// The voxel rows of this layer with allocated tiles, in increasing order.
+    /// The voxel rows of this layer with live columns in some slice, in increasing order.
     const std::vector<int>& occupied() const { return occupied_; }
 
 private:
@@ -559,8 +589,8 @@ private:
     std::vector<PlaneRow> rows_;              // per tile row, over all layers
     std::vector<float> P_;                    // the current tile layer
     std::vector<float> range_;                // per chunk of P_: smallest and largest sigma
-    std::vector<int> spanLo_, spanHi_;        // per voxel row: columns in allocated tiles of this layer
-    std::vector<int> occupied_;               // voxel rows with spanLo < spanHi
+    std::vector<int> spanLo_, spanHi_;        // per (voxel row, slice): its live columns (LiveSpans)
+    std::vector<int> occupied_;               // voxel rows with live columns in some slice
     std::vector<AxisFrame::TileWalk> walks_;  // gather scratch: one tile row's tiles
     std::vector<std::uint8_t> empty_;
 };
@@ -980,8 +1010,9 @@ private:
                 continue;
             }
             if (!any) continue;  // the slice lies in empty tiles: rays cross it unchanged
-            const int lo = planes_->spanLo()[vr], hi = planes_->spanHi()[vr];
-            if (lo >= hi) continue;  // the voxel row lies in empty tiles
+            const size_t span = size_t(vr) * K + size_t(slice_);
+            const int lo = planes_->spanLo()[span], hi = planes_->spanHi()[span];
+            if (lo >= hi) continue;  // the voxel row holds no live chunk in this slice
             applyShift(row);
             materialize(row);
             // lo is tile-aligned; hi rounds up into the padding columns (sigma = 0 there).

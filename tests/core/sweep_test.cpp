@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <initializer_list>
+#include <string>
 #include <vector>
 
 #include "core/rng.h"
@@ -436,4 +437,118 @@ TEST(SweepKernel, GroupRefusesMixedSignsAxesOrSources) {
     for (const Job* other : {&b, &c, &d})
         EXPECT_THROW(sweepStepGroup(m, {&a, other}, 2, std::vector<float*>{p0.data(), p1.data()}, t), Error);
     EXPECT_THROW(sweepStepGroup(m, {&a, &a}, 2, std::vector<float*>{p0.data()}, t), Error);
+}
+
+namespace {
+
+// Two balls of density in a sparse block, their allocated tiles wider than they are, and
+// Medium::wantedS on every voxel within one voxel of the density (a bake's shell): many
+// chunks of allocated tiles are empty and unread (dead).
+Medium ballsWithShell() {
+    Medium probe;
+    probe.nx = 45, probe.ny = 41, probe.nz = 38;
+    std::vector<std::uint8_t> active(size_t(probe.tilesX()) * probe.tilesY() * probe.tilesZ(), 0);
+    const double centres[2][3] = {{9.3, 10.1, 8.7}, {35.2, 30.6, 28.9}};
+    const double radius = 7.4;
+    for (int tz = 0; tz < probe.tilesZ(); ++tz)
+        for (int ty = 0; ty < probe.tilesY(); ++ty)
+            for (int tx = 0; tx < probe.tilesX(); ++tx)
+                for (const auto& c : centres) {
+                    const int t[3] = {tx, ty, tz};
+                    bool near = true;
+                    for (int a = 0; a < 3; ++a)
+                        near = near && c[a] + radius + 2 > t[a] * 8.0 && c[a] - radius - 2 < t[a] * 8.0 + 8;
+                    if (near) active[size_t(tx) + size_t(probe.tilesX()) * (size_t(ty) + size_t(probe.tilesY()) * tz)] = 1;
+                }
+    Medium m;
+    m.voxelSize = {1, 0.9, 1.1};
+    m.albedo = RGB(0.9f, 0.8f, 0.7f);
+    m.allocate(probe.nx, probe.ny, probe.nz, &active);
+    auto inBall = [&](int x, int y, int z, double grow) {
+        for (const auto& c : centres) {
+            const double dx = x + 0.5 - c[0], dy = y + 0.5 - c[1], dz = z + 0.5 - c[2];
+            if (dx * dx + dy * dy + dz * dz < (radius + grow) * (radius + grow)) return true;
+        }
+        return false;
+    };
+    m.wantedS.assign(m.voxelCount(), 0);
+    for (int z = 0; z < m.nz; ++z)
+        for (int y = 0; y < m.ny; ++y)
+            for (int x = 0; x < m.nx; ++x) {
+                const size_t v = m.index(x, y, z);
+                if (v == Medium::npos) continue;
+                if (inBall(x, y, z, 0)) m.sigmaT[v] = float(0.2 + 0.1 * ((x * 7 + y * 3 + z) % 5));
+                m.wantedS[v] = inBall(x, y, z, 1.8);  // the density's voxels and a shell around them
+            }
+    return m;
+}
+
+// Deposits of a sweep with wantedS against one without, voxel by voxel: equal where a
+// voxel holds extinction or is wanted, 0 elsewhere; returns how many of the latter the
+// sweep without wantedS gave a non-zero deposit (skipped work).
+size_t expectLiveDepositsEqual(const Medium& m, const std::vector<float>& withWanted,
+                               const std::vector<float>& without, const std::string& what) {
+    size_t skipped = 0, differ = 0, deadNonZero = 0;
+    for (size_t v = 0; v < m.voxelCount(); ++v)
+        for (int c = 0; c < 3; ++c) {
+            const float a = withWanted[v * 3 + c], b = without[v * 3 + c];
+            if (m.sigmaT[v] > 0 || m.wantedS[v]) differ += a != b;
+            else {
+                deadNonZero += a != 0;
+                skipped += b != 0;
+            }
+        }
+    EXPECT_EQ(differ, 0u) << what;
+    EXPECT_EQ(deadNonZero, 0u) << what;
+    return skipped;
+}
+
+}  // namespace
+
+// The sweep skips chunks that hold no extinction and no wanted voxel (docs/performance.md,
+// "Dead chunks"): rays cross them unchanged, so every deposit that is read (a voxel with
+// extinction, or a wanted one) is bit for bit what the sweep of every chunk gives, and the
+// power tallies agree; fewer segments are swept.
+TEST(SweepKernel, DeadChunksSkippedWhatIsReadUnchanged) {
+    const Medium m = ballsWithShell();
+    Medium all = m;
+    all.wantedS.clear();
+    std::vector<float> src(m.voxelCount() * 3);
+    Pcg32 rng(12, 7);
+    for (float& x : src) x = float(rng.uniform());
+    const std::vector<Vec3> dirs = {{1, 0.8, 0.9}, {-1, -0.7, -0.95}, {0.3, 1, -0.6}, {-0.4, 0.2, 1}};
+    const size_t N = m.voxelCount();
+    int cases = 0;
+    for (int r : {1, 2})
+        for (const Vec3& w : dirs)
+            for (bool withSrc : {false, true}) {
+                const Job job = makeJob(w, withSrc ? &src : nullptr, 0.19 + 0.07 * cases);
+                std::vector<float> a(N * 3, 0.0f), b(N * 3, 0.0f);
+                Tally ta, tb;
+                sweepStep(m, job, r, a.data(), ta);
+                sweepStep(all, job, r, b.data(), tb);
+                const std::string what = "r " + std::to_string(r) + " case " + std::to_string(cases);
+                EXPECT_GT(expectLiveDepositsEqual(m, a, b, what), 0u) << what;
+                EXPECT_LT(ta.segments, tb.segments) << what;
+                for (int c = 0; c < 3; ++c) {
+                    EXPECT_EQ(ta.scattered[c], tb.scattered[c]) << what;
+                    EXPECT_EQ(ta.absorbed[c], tb.absorbed[c]) << what;
+                    EXPECT_NEAR(ta.injected[c], tb.injected[c], 1e-9 * tb.injected[c]) << what;
+                    EXPECT_NEAR(ta.escaped[c], tb.escaped[c], 1e-9 * tb.injected[c]) << what;
+                }
+                ++cases;
+            }
+    EXPECT_EQ(cases, 16);
+    // A batch (shared planes, jobs of both signs) likewise.
+    std::vector<Job> jobs = {makeJob({1, 0.6, 0.3}, &src, 0.21), makeJob({-1, 0.2, -0.5}, &src, 0.47),
+                             makeJob({0.9, -0.7, 0.8}, &src, 0.73)};
+    std::vector<const Job*> ptrs;
+    for (const Job& j : jobs) ptrs.push_back(&j);
+    std::vector<float> a(N * 3, 0.0f), b(N * 3, 0.0f);
+    Tally ta, tb;
+    sweepStepBatch(m, ptrs, 2, a.data(), ta, 0.8f);
+    sweepStepBatch(all, ptrs, 2, b.data(), tb, 0.8f);
+    EXPECT_GT(expectLiveDepositsEqual(m, a, b, "batch"), 0u);
+    EXPECT_LT(ta.segments, tb.segments);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(ta.scattered[c], tb.scattered[c]);
 }
