@@ -377,8 +377,8 @@ struct GatherSource {
     float scale[3];
     GatherSource(const Medium& m, const Job& job)
         : sigma(m.sigmaT.data()), src(job.src), srcBf16(job.srcBf16),
-          wanted(m.wantedS.empty() ? nullptr : m.wantedS.data()), stride(job.srcStride),
-          scale{job.srcScale.r, job.srcScale.g, job.srcScale.b} {}
+          wanted(m.wantedS.empty() ? nullptr : m.wantedS.data()),
+          stride(job.srcStride), scale{job.srcScale.r, job.srcScale.g, job.srcScale.b} {}
 };
 
 // One chunk (the nU voxels of a tile row segment from storage index x0, stride sU) into
@@ -444,7 +444,8 @@ void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* ro
                 const AxisFrame::TileWalk& w = walks[size_t(i)];
                 const size_t chunk = at / kChunk + size_t(i);
                 if (gatherChunk(g, empty[size_t(i)], w.base + size_t(s) * w.sA + size_t(lv) * w.sV, w.sU, w.nU,
-                                &P[chunk * kChunk], &R[2 * chunk])) {
+                                &P[chunk * kChunk], &R[2 * chunk]))
+                {
                     if (liveFirst < 0) liveFirst = i;
                     liveLast = i;
                 }
