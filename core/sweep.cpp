@@ -537,16 +537,20 @@ public:
     // Fills the layer's planes over the span of allocated tiles of each tile row and sets
     // the voxel rows' spans (tile-granular); returns whether the layer holds any allocated tile.
     bool gather(int layer, const Job& srcJob) {
-        bool any = false;
         occupied_.clear();
-        for (int tv = 0; tv < f_.tnv; ++tv) {
-            int first, last;
-            ext_.rowExtent(layer, tv, first, last);
-            any = any || first >= 0;
+        for (int tv : spanRows_) {  // the tile rows the last gather gave spans
             const int cv0 = tv * K, cv1 = std::min(f_.nv, (tv + 1) * K);
             std::fill(spanLo_.begin() + cv0 * K, spanLo_.begin() + cv1 * K, 0);
             std::fill(spanHi_.begin() + cv0 * K, spanHi_.begin() + cv1 * K, 0);
+        }
+        spanRows_.clear();
+        if (!ext_.layerAny(layer)) return false;
+        for (int tv = 0; tv < f_.tnv; ++tv) {
+            int first, last;
+            ext_.rowExtent(layer, tv, first, last);
             if (first < 0) continue;
+            const int cv0 = tv * K, cv1 = std::min(f_.nv, (tv + 1) * K);
+            spanRows_.push_back(tv);
             gatherTileRow(f_, GatherSource(f_.m, srcJob), rows_.data(), P_.data(), range_.data(), layer, tv, first,
                           last, walks_, empty_, LiveSpans{spanLo_.data(), spanHi_.data()});
             for (int cv = cv0; cv < cv1; ++cv)
@@ -556,7 +560,7 @@ public:
                         break;
                     }
         }
-        return any;
+        return true;
     }
 
     // phi += k * the layer's deposits (allocated voxels only), or phi = when Assign (each
@@ -592,6 +596,7 @@ private:
     std::vector<float> range_;                // per chunk of P_: smallest and largest sigma
     std::vector<int> spanLo_, spanHi_;        // per (voxel row, slice): its live columns (LiveSpans)
     std::vector<int> occupied_;               // voxel rows with live columns in some slice
+    std::vector<int> spanRows_;               // tile rows whose spans the last gather set
     std::vector<AxisFrame::TileWalk> walks_;  // gather scratch: one tile row's tiles
     std::vector<std::uint8_t> empty_;
 };
@@ -779,11 +784,15 @@ private:
                     }
                 }
         }
-        // In row order; a dense layer marks most rows, where a scan beats a sort.
-        if (cand_.size() * 8 < rows_count_) std::sort(cand_.begin(), cand_.end());
+        if (cand_.empty()) return;
+        // In row order; where the candidates fill most of the rows between the first and
+        // the last of them, a scan of those rows beats a sort.
+        const auto [lo, hi] = std::minmax_element(cand_.begin(), cand_.end());
+        const size_t first = *lo, last = *hi;
+        if (cand_.size() * 8 < last - first + 1) std::sort(cand_.begin(), cand_.end());
         else {
             cand_.clear();
-            for (size_t row = 0; row < rows_count_; ++row)
+            for (size_t row = first; row <= last; ++row)
                 if (mark_[row] == stamp_) cand_.push_back(row);
         }
         for (size_t row : cand_) {
