@@ -653,7 +653,8 @@ public:
         uCount_.assign(size_t(r) * r, 0);
         for (int c = 0; c < 3; ++c) {
             bnd_[c] = job.boundary[c];
-            inj_[c] = double(bnd_[c]) * double(size_t(r) * r * g_.nu * g_.nv);  // padding lanes excluded
+            bndIn_ = std::uint64_t(r) * std::uint64_t(r) * std::uint64_t(g_.nu) *
+                     std::uint64_t(g_.nv);  // padding lanes excluded
         }
         dk_ = shared && !ownDeposits ? float(g_.aPerp * job.weight) : 1.0f;
         if (!shared) own_ = std::make_unique<LayerPlanes>(m, job.axis);
@@ -719,8 +720,9 @@ public:
         const double k = g_.aPerp * job_.weight, V = m_.voxelVolume();
         const double alb[3] = {m_.albedo.r, m_.albedo.g, m_.albedo.b};
         for (int c = 0; c < 3; ++c) {
-            tally.injected[c] += (inj_[c] + injSrc_[c] * V / g_.aPerp) * k;
-            tally.escaped[c] += esc_[c] * k;
+            const double inj = double(bnd_[c]) * double(bndIn_), esc = esc_[c] + double(bnd_[c]) * double(bndOut_);
+            tally.injected[c] += (inj + injSrc_[c] * V / g_.aPerp) * k;
+            tally.escaped[c] += esc * k;
             tally.scattered[c] += alb[c] * sca_[c] * k;
             tally.absorbed[c] += (1 - alb[c]) * sca_[c] * k;
         }
@@ -877,7 +879,9 @@ private:
 
     // Escaped radiance of every ray of a row (pristine: nu bnd).
     void tallyRowEscape(size_t row) {
-        for (int c = 0; c < 3; ++c) esc_[c] += pristine_[row] ? double(bnd_[c]) * g_.nu : sumColumns(row, c, 0, g_.nu);
+        if (pristine_[row]) bndOut_ += std::uint64_t(g_.nu);
+        else
+            for (int c = 0; c < 3; ++c) esc_[c] += sumColumns(row, c, 0, g_.nu);
     }
 
     // A pristine ray row (every ray holding the boundary radiance, never written) becomes
@@ -953,7 +957,7 @@ private:
     void leaveRow(size_t row) {
         applyShift(row);
         tallyRowEscape(row);
-        for (int c = 0; c < 3; ++c) inj_[c] += double(bnd_[c]) * g_.nu;
+        bndIn_ += std::uint64_t(g_.nu);
         if (!dense_) {
             delete[] block_[row];
             block_[row] = nullptr;
@@ -970,10 +974,8 @@ private:
     void applyShift(size_t row) {
         int& k = pending_[row];
         if (k > 0 && pristine_[row]) {  // every ray holds bnd: k leave, k re-enter
-            for (int c = 0; c < 3; ++c) {
-                esc_[c] += double(bnd_[c]) * k;
-                inj_[c] += double(bnd_[c]) * k;
-            }
+            bndOut_ += std::uint64_t(k);
+            bndIn_ += std::uint64_t(k);
             k = 0;
         }
         const int nu = g_.nu;
@@ -983,10 +985,8 @@ private:
             // read; the others hold the boundary radiance, added as one product (the row's
             // length is the block's, a stray voxel's row would cost O(nu) per shift).
             const int a = g_.su > 0 ? nu - step : 0;
-            for (int c = 0; c < 3; ++c) {
-                esc_[c] += sumColumns(row, c, a, a + step);
-                inj_[c] += double(bnd_[c]) * step;
-            }
+            for (int c = 0; c < 3; ++c) esc_[c] += sumColumns(row, c, a, a + step);
+            bndIn_ += std::uint64_t(step);  // as many enter at the opposite face
             int& lo = vlo_[row];
             int& hi = vhi_[row];
             if (g_.su > 0) {  // column c is now column c + step
@@ -1070,7 +1070,10 @@ private:
     int SV_[16] = {};
     std::vector<Event> ev_[256];
     float bnd_[3];
-    double inj_[3] = {0, 0, 0}, esc_[3] = {0, 0, 0}, sca_[3] = {0, 0, 0}, injSrc_[3] = {0, 0, 0};
+    double esc_[3] = {0, 0, 0}, sca_[3] = {0, 0, 0}, injSrc_[3] = {0, 0, 0};
+    // Rays entering, and rays leaving while they hold the boundary radiance (a pristine
+    // row's), counted: their power is bnd_ times the count, added once in finish.
+    std::uint64_t bndIn_ = 0, bndOut_ = 0;
     std::uint64_t segs_ = 0;
 };
 
