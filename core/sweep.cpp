@@ -11,7 +11,9 @@
 // Crossing a lateral face of the block re-enters a ray at the opposite face with the
 // boundary radiance (Fattal's reinjection): one ray per row for a u crossing, a whole row
 // for a v crossing. Voxel rows of a slice that lie in unallocated tiles are skipped: rays
-// cross empty space unchanged.
+// cross empty space unchanged; so are the chunks at either end of a row that hold no
+// extinction and no voxel the caller reads (Medium::wantedS; "dead chunks"), and a tile
+// layer with no allocated tile costs only the lattice's crossings (no gather, no events).
 //
 // Segment (tau = sigma l, T = e^-tau, constant source Q):
 //   L_out = L T + Q e1,  Int L ds = L e1 + Q e2,

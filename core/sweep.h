@@ -10,7 +10,9 @@
 //                   geometry in a slice, so a slice is a few runs of contiguous rays over a
 //                   dense plane of the slice's voxels: float32, vectorised (runtime
 //                   dispatch to AVX-512 / AVX2), and voxel rows in unallocated (empty) tiles
-//                   are skipped, since rays cross them unchanged.
+//                   are skipped, since rays cross them unchanged, as are the chunks at
+//                   a row's ends with no extinction and no wanted voxel (Medium::wantedS):
+//                   their deposits are 0 instead of the free-space light, nobody reads them.
 #pragma once
 
 #include <cstdint>
@@ -66,8 +68,9 @@ template <bool Linear>
 void sweepReference(const Medium& m, const Job& job, int r, float* phi, Tally& tally);
 
 /// Fast kernel for a voxel-constant source: phi [stored voxel][rgb] += depositScale * Phi.
-/// Results agree with sweepReference<false> to float rounding; the tally is identical in
-/// meaning (it does not include depositScale).
+/// Results agree with sweepReference<false> to float rounding (with Medium::wantedS set,
+/// at the voxels with extinction or wanted; the skipped dead chunks get nothing); the tally
+/// is identical in meaning (it does not include depositScale).
 void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally, float depositScale = 1.0f);
 
 /// The sweeps of `jobs`, all with one sweep axis and one voxel-constant source (src,
