@@ -653,11 +653,9 @@ public:
         mark_.assign(rows_count_, 0);
         classU_.assign(size_t(r) * r, 0);
         uCount_.assign(size_t(r) * r, 0);
-        for (int c = 0; c < 3; ++c) {
-            bnd_[c] = job.boundary[c];
-            bndIn_ = std::uint64_t(r) * std::uint64_t(r) * std::uint64_t(g_.nu) *
-                     std::uint64_t(g_.nv);  // padding lanes excluded
-        }
+        for (int c = 0; c < 3; ++c) bnd_[c] = job.boundary[c];
+        // Every ray of the lattice starts holding the boundary radiance (padding lanes excluded).
+        bndIn_ = std::uint64_t(r) * std::uint64_t(r) * std::uint64_t(g_.nu) * std::uint64_t(g_.nv);
         dk_ = shared && !ownDeposits ? float(g_.aPerp * job.weight) : 1.0f;
         if (!shared) own_ = std::make_unique<LayerPlanes>(m, job.axis);
         planes_ = shared ? shared : own_.get();
@@ -751,7 +749,7 @@ private:
             for (const Event& e : ev_[size_t(cls)]) uCount_[cls] += e.kind == 1;
         }
         ++stamp_;
-        if (any) sweepOccupiedRows();
+        sweepOccupiedRows();
         for (int cls = 0; cls < rr; ++cls) crossUntouchedRows(cls, SV_[cls / r], ev_[size_t(cls)]);
         for (int cls = 0; cls < rr; ++cls) classU_[cls] += uCount_[cls];
     }
