@@ -180,6 +180,9 @@ inline int wrap(long long x, int n) {
     return int(m < 0 ? m + n : m);
 }
 
+// wrap for x in (-n, 2n), without a division.
+inline int wrapNear(int x, int n) { return x < 0 ? x + n : (x >= n ? x - n : x); }
+
 // The sweep's fixed geometry: axes, per-slice lateral shift, lattice, block and tiles.
 struct Geometry {
     int a, u, v, nu, nv, na, r, su, sv;
@@ -667,10 +670,7 @@ public:
         }
     }
 
-    ~StepSweep() {
-        if (!dense_)
-            for (float* b : block_) delete[] b;
-    }
+    ~StepSweep() = default;
     StepSweep(const StepSweep&) = delete;
     StepSweep& operator=(const StepSweep&) = delete;
 
@@ -712,11 +712,23 @@ public:
 
     // After the last layer: the rays still in the block escape; adds this sweep's tally.
     void finish(Tally& tally) {
-        for (size_t row = 0; row < rows_count_; ++row) {
-            syncPending(row, 0);
+        // A pristine row's rays all hold the boundary radiance: its pending shifts move k
+        // of them out and k in, and all nu escape now (applyShift, tallyRowEscape), counted
+        // without touching its state.
+        const size_t rr = uCount_.size();
+        std::uint64_t pristineRows = 0, pristineShifts = 0;
+        for (size_t row = 0, cls = 0; row < rows_count_; ++row, cls = cls + 1 == rr ? 0 : cls + 1) {
+            if (pristine_[row]) {
+                ++pristineRows;
+                pristineShifts += std::uint64_t(pending_[row] + classU_[cls] - seenU_[row]);
+                continue;
+            }
+            syncPending(row, int(cls), 0);
             applyShift(row);
             tallyRowEscape(row);
         }
+        bndOut_ += pristineRows * std::uint64_t(g_.nu) + pristineShifts;
+        bndIn_ += pristineShifts;
         const double k = g_.aPerp * job_.weight, V = m_.voxelVolume();
         const double alb[3] = {m_.albedo.r, m_.albedo.g, m_.albedo.b};
         for (int c = 0; c < 3; ++c) {
@@ -765,7 +777,7 @@ private:
             for (size_t row = 0; row < rows_count_; ++row) mark_[row] = stamp_;
             for (size_t row = 0; row < rows_count_; ++row) {
                 const int cls = int(row % size_t(rr)), cellV = int(row / size_t(rr));
-                syncPending(row, 0);
+                syncPending(row, cls, 0);
                 processRow(row, cellV, SV_[cls / r], ev_[size_t(cls)], true);
                 seenU_[row] = classU_[cls] + uCount_[cls];
             }
@@ -776,10 +788,10 @@ private:
             int shifts[8], ns = 0;
             shifts[ns++] = shift;
             for (const Event& e : ev_[size_t(cls)])
-                if (e.kind == 2 && ns < 8) shifts[ns++] = shift = wrap(shift + g_.sv, nv);
+                if (e.kind == 2 && ns < 8) shifts[ns++] = shift = wrapNear(shift + g_.sv, nv);
             for (int vr : planes_->occupied())
                 for (int k = 0; k < ns; ++k) {
-                    const size_t row = size_t(wrap(vr - shifts[k], nv)) * rr + size_t(cls);
+                    const size_t row = size_t(wrapNear(vr - shifts[k], nv)) * rr + size_t(cls);
                     if (mark_[row] != stamp_) {
                         mark_[row] = stamp_;
                         cand_.push_back(row);
@@ -799,7 +811,7 @@ private:
         }
         for (size_t row : cand_) {
             const int cls = int(row % size_t(rr)), cellV = int(row / size_t(rr));
-            syncPending(row, 0);
+            syncPending(row, cls, 0);
             processRow(row, cellV, SV_[cls / r], ev_[size_t(cls)], true);
             seenU_[row] = classU_[cls] + uCount_[cls];  // this slice's u crossings are applied
         }
@@ -819,12 +831,15 @@ private:
             if (e.kind == 1) {
                 ++uSoFar;
             } else if (e.kind == 2) {
-                const size_t row = size_t(wrap(edge - shift, nv)) * rr + size_t(cls);
-                if (mark_[row] != stamp_) {  // a candidate left in processRow
-                    syncPending(row, uSoFar);
+                const size_t row = size_t(wrapNear(edge - shift, nv)) * rr + size_t(cls);
+                if (mark_[row] == stamp_) {  // a candidate: left in processRow
+                } else if (pristine_[row]) {
+                    leavePristineRow();
+                } else {
+                    syncPending(row, cls, uSoFar);
                     leaveRow(row);
                 }
-                shift = wrap(shift + g_.sv, nv);
+                shift = wrapNear(shift + g_.sv, nv);
             }
         }
     }
@@ -844,11 +859,14 @@ private:
             int shift = SV_[cls / r];
             size_t uSoFar = 0;
             for (const double l : lv) {
-                while (uSoFar < lu.size() && lu[uSoFar] <= l) ++uSoFar;
-                const size_t row = size_t(wrap(edge - shift, nv)) * rr + size_t(cls);
-                syncPending(row, int(uSoFar));
-                leaveRow(row);
-                shift = wrap(shift + g_.sv, nv);
+                const size_t row = size_t(wrapNear(edge - shift, nv)) * rr + size_t(cls);
+                if (pristine_[row]) leavePristineRow();
+                else {
+                    while (uSoFar < lu.size() && lu[uSoFar] <= l) ++uSoFar;
+                    syncPending(row, cls, int(uSoFar));
+                    leaveRow(row);
+                }
+                shift = wrapNear(shift + g_.sv, nv);
             }
         }
         for (int cls = 0; cls < rr; ++cls) classU_[cls] += uCount_[cls];
@@ -856,8 +874,8 @@ private:
 
     // Brings a row's pending column shifts up to date: the u crossings its class made
     // since the row last took its share, plus `extra` of the current slice.
-    void syncPending(size_t row, int extra) {
-        const int cls = int(row % uCount_.size()), now = classU_[cls] + extra;
+    void syncPending(size_t row, int cls, int extra) {
+        const int now = classU_[cls] + extra;
         pending_[row] += now - seenU_[row];
         seenU_[row] = now;
     }
@@ -873,8 +891,13 @@ private:
         const int lo = std::clamp(vlo_[row], a, b), hi = std::clamp(vhi_[row], lo, b);
         double sum = double(bnd_[c]) * double((b - a) - (hi - lo));
         const float* x = hi > lo ? at(row, c, lo) : nullptr;
-        for (int i = 0; i < hi - lo; ++i) sum += x[i];
-        return sum;
+        const int n = hi - lo;
+        double part[4] = {0, 0, 0, 0};  // four sums in turn (a tally: the order is fixed, not the grids')
+        int i = 0;
+        for (; i + 4 <= n; i += 4)
+            for (int j = 0; j < 4; ++j) part[j] += double(x[i + j]);
+        for (; i < n; ++i) part[0] += double(x[i]);
+        return sum + ((part[0] + part[1]) + (part[2] + part[3]));
     }
 
     // Escaped radiance of every ray of a row (pristine: nu bnd).
@@ -941,14 +964,50 @@ private:
     void grow(size_t row, int needLo, int needHi) {
         int cap = 64;
         while (cap < needHi - needLo) cap *= 2;
-        float* nb = new float[3 * size_t(cap)];
+        float* nb = takeBlock(cap);
         const int a = vlo_[row], b = vhi_[row];
         for (int c = 0; c < 3 && a < b; ++c)
             std::memcpy(nb + size_t(c) * cap + (a - needLo), at(row, c, a), size_t(b - a) * sizeof(float));
-        delete[] block_[row];
+        giveBlock(block_[row], cap_[row]);
         block_[row] = nb;
         cap_[row] = cap;
         org_[row] = needLo;
+    }
+
+    // A pristine row leaves (leaveRow): its nu rays escape holding the boundary radiance
+    // and as many re-enter. Its pending column shifts (each one ray out, one in) stay
+    // pending and are counted when it is next synced: integer counts, the same totals.
+    void leavePristineRow() {
+        bndOut_ += std::uint64_t(g_.nu);
+        bndIn_ += std::uint64_t(g_.nu);
+    }
+
+    // Sparse blocks: storage for 3 channels of cap columns (a power of two, >= 64): one
+    // a row that left gave back, else carved from the sweep's slabs (each twice the last,
+    // 64 KiB first), freed with the sweep: hundreds of rows come and go in every sweep,
+    // and malloc per block cost the r = 8 puffs' pair about 5% of its solve.
+    float* takeBlock(int cap) {
+        const size_t bin = size_t(__builtin_ctz(unsigned(cap / 64)));
+        if (bin < freeBlocks_.size() && !freeBlocks_[bin].empty()) {
+            float* b = freeBlocks_[bin].back();
+            freeBlocks_[bin].pop_back();
+            return b;
+        }
+        const size_t need = 3 * size_t(cap);
+        if (slabUsed_ + need > slabSize_) {
+            slabSize_ = std::max(std::max(slabSize_ * 2, size_t(16384)), need);
+            slabs_.emplace_back(new float[slabSize_]);  // uninitialised: written before read
+            slabUsed_ = 0;
+        }
+        float* b = slabs_.back().get() + slabUsed_;
+        slabUsed_ += need;
+        return b;
+    }
+    void giveBlock(float* block, int cap) {
+        if (!block) return;
+        const size_t bin = size_t(__builtin_ctz(unsigned(cap / 64)));
+        if (bin >= freeBlocks_.size()) freeBlocks_.resize(bin + 1);
+        freeBlocks_[bin].push_back(block);
     }
 
     // The whole row leaves the block through a v face: every ray is tallied as escaped and
@@ -959,7 +1018,7 @@ private:
         tallyRowEscape(row);
         bndIn_ += std::uint64_t(g_.nu);
         if (!dense_) {
-            delete[] block_[row];
+            giveBlock(block_[row], cap_[row]);
             block_[row] = nullptr;
         }
         pristine_[row] = 1;
@@ -1055,6 +1114,9 @@ private:
     int C_ = 0;                           // dense: columns of a row's slot, nu rounded up to tiles plus slack
     float* arena_ = nullptr;              // dense: the rows' slots, 3 channels of C_ lanes each, in row order
     std::vector<float*> block_;           // per written ray row: its storage (sparse: null until touched)
+    std::vector<std::vector<float*>> freeBlocks_;  // sparse: blocks of 64 << i columns no row holds
+    std::vector<std::unique_ptr<float[]>> slabs_;  // sparse: where the blocks lie
+    size_t slabSize_ = 0, slabUsed_ = 0;           // floats of the last slab, and carved from it
     std::vector<int> cap_, org_;          // per written ray row: its window holds columns org .. org + cap - 1
     std::vector<int> vlo_, vhi_;          // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
     std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <utility>
 
 #include "core/parallel.h"
 #include "core/phase.h"
@@ -397,6 +398,16 @@ Medium ballInBlock(int n) {
     return m;
 }
 
+// Two media solved alike: a 32x16 sky, 2 directions per face, the other settings default.
+std::pair<LpmResult, LpmResult> solveQuickUnderSky(const Medium& first, const Medium& second) {
+    const EnvMap sky = makeSky(32);
+    Lights lights;
+    lights.env = &sky;
+    LpmSettings quick;
+    quick.directionsPerFace = 2;
+    return {solveLpm(first, lights, quick), solveLpm(second, lights, quick)};
+}
+
 }  // namespace
 
 // The tolerance is a share of the light the medium takes, not of the light entering the
@@ -408,12 +419,7 @@ Medium ballInBlock(int n) {
 TEST(LpmSolver, EmptySpaceAroundAMediumLeavesTheStopTestAlone) {
     const Medium tight = ballInBlock(16), large = ballInBlock(160);
     ASSERT_EQ(large.storedTiles, 8u);
-    const EnvMap sky = makeSky(32);
-    Lights lights;
-    lights.env = &sky;
-    LpmSettings quick;
-    quick.directionsPerFace = 2;
-    const LpmResult a = solveLpm(tight, lights, quick), b = solveLpm(large, lights, quick);
+    const auto [a, b] = solveQuickUnderSky(tight, large);
     EXPECT_GT(b.injected, 50 * b.input);  // most of the block's light crosses empty space
     EXPECT_NEAR(a.input, b.input, 1e-3 * a.input);
     EXPECT_TRUE(a.converged && b.converged);
@@ -453,12 +459,7 @@ TEST(LpmSolver, SkippedDeadChunksLeaveTheWrittenVoxelsAlone) {
                 const size_t v = all.index(x, y, z);
                 if (nearDensity && v != Medium::npos) written.wantedS[v] = 1;
             }
-    const EnvMap sky = makeSky(32);
-    Lights lights;
-    lights.env = &sky;
-    LpmSettings quick;
-    quick.directionsPerFace = 2;
-    const LpmResult a = solveLpm(all, lights, quick), b = solveLpm(written, lights, quick);
+    const auto [a, b] = solveQuickUnderSky(all, written);
     EXPECT_EQ(a.passes.size(), b.passes.size());
     EXPECT_LT(b.segments, a.segments * 0.9) << "the dead chunks were swept";
     double diff = 0, sum = 0;
