@@ -1111,13 +1111,13 @@ private:
     int slack_ = 8;                                  // dense: columns of a slot beyond the plane's width
     static constexpr size_t kSparseBlockRatio = 16;  // dense: at least 1/16 of the block's tiles stored
     bool dense_ = true;
-    int C_ = 0;                           // dense: columns of a row's slot, nu rounded up to tiles plus slack
-    float* arena_ = nullptr;              // dense: the rows' slots, 3 channels of C_ lanes each, in row order
-    std::vector<float*> block_;           // per written ray row: its storage (sparse: null until touched)
+    int C_ = 0;                                    // dense: columns of a row's slot, nu rounded up to tiles plus slack
+    float* arena_ = nullptr;                       // dense: the rows' slots, 3 channels of C_ lanes each, in row order
+    std::vector<float*> block_;                    // per written ray row: its storage (sparse: null until touched)
     std::vector<std::vector<float*>> freeBlocks_;  // sparse: blocks of 64 << i columns no row holds
     std::vector<std::unique_ptr<float[]>> slabs_;  // sparse: where the blocks lie
     size_t slabSize_ = 0, slabUsed_ = 0;           // floats of the last slab, and carved from it
-    std::vector<int> cap_, org_;          // per written ray row: its window holds columns org .. org + cap - 1
+    std::vector<int> cap_, org_;                   // per written ray row: its window holds columns org .. org + cap - 1
     std::vector<int> vlo_, vhi_;          // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
     std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)
     std::vector<int> pending_;            // per ray row: u crossings not yet applied (besides its class's, below)
