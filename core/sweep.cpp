@@ -542,7 +542,7 @@ public:
     // Fills the layer's planes over the span of allocated tiles of each tile row and sets
     // the voxel rows' spans (tile-granular); returns whether the layer holds any allocated tile.
     bool gather(int layer, const Job& srcJob) {
-        occupied_.clear();
+        for (std::vector<int>& rows : occupied_) rows.clear();
         for (int tv : spanRows_) {  // the tile rows the last gather gave spans
             const int cv0 = tv * K, cv1 = std::min(f_.nv, (tv + 1) * K);
             std::fill(spanLo_.begin() + cv0 * K, spanLo_.begin() + cv1 * K, 0);
@@ -560,10 +560,7 @@ public:
                           last, walks_, empty_, LiveSpans{spanLo_.data(), spanHi_.data()});
             for (int cv = cv0; cv < cv1; ++cv)
                 for (int s = 0; s < K; ++s)
-                    if (spanLo_[size_t(cv) * K + s] < spanHi_[size_t(cv) * K + s]) {
-                        occupied_.push_back(cv);
-                        break;
-                    }
+                    if (spanLo_[size_t(cv) * K + s] < spanHi_[size_t(cv) * K + s]) occupied_[s].push_back(cv);
         }
         return true;
     }
@@ -590,19 +587,19 @@ public:
     /// (LiveSpans); lo is tile-aligned.
     const int* spanLo() const { return spanLo_.data(); }
     const int* spanHi() const { return spanHi_.data(); }
-    /// The voxel rows of this layer with live columns in some slice, in increasing order.
-    const std::vector<int>& occupied() const { return occupied_; }
+    /// The voxel rows with live columns in slice `slice` of this layer, in increasing order.
+    const std::vector<int>& occupied(int slice) const { return occupied_[size_t(slice)]; }
 
 private:
     AxisFrame f_;
     TileRowExtents ext_;
-    std::vector<PlaneRow> rows_;              // per tile row, over all layers
-    std::vector<float> P_;                    // the current tile layer
-    std::vector<float> range_;                // per chunk of P_: smallest and largest sigma
-    std::vector<int> spanLo_, spanHi_;        // per (voxel row, slice): its live columns (LiveSpans)
-    std::vector<int> occupied_;               // voxel rows with live columns in some slice
-    std::vector<int> spanRows_;               // tile rows whose spans the last gather set
-    std::vector<AxisFrame::TileWalk> walks_;  // gather scratch: one tile row's tiles
+    std::vector<PlaneRow> rows_;                // per tile row, over all layers
+    std::vector<float> P_;                      // the current tile layer
+    std::vector<float> range_;                  // per chunk of P_: smallest and largest sigma
+    std::vector<int> spanLo_, spanHi_;          // per (voxel row, slice): its live columns (LiveSpans)
+    std::array<std::vector<int>, K> occupied_;  // per slice of the layer: voxel rows with live columns
+    std::vector<int> spanRows_;                 // tile rows whose spans the last gather set
+    std::vector<AxisFrame::TileWalk> walks_;    // gather scratch: one tile row's tiles
     std::vector<std::uint8_t> empty_;
 };
 
@@ -655,6 +652,7 @@ public:
         seenU_.assign(rows_count_, 0);
         mark_.assign(rows_count_, 0);
         classU_.assign(size_t(r) * r, 0);
+        cellBits_.assign(size_t(g_.nv + 63) / 64, 0);
         uCount_.assign(size_t(r) * r, 0);
         for (int c = 0; c < 3; ++c) bnd_[c] = job.boundary[c];
         // Every ray of the lattice starts holding the boundary radiance (padding lanes excluded).
@@ -751,10 +749,12 @@ private:
             crossings(stU_[j], g_.du, lamU_[j]);
             crossings(stV_[j], g_.dv, lamV_[j]);
         }
-        if (!any) return crossEmptySlice();
+        slice_ = ia % K;
+        // No live chunk in the slice (an empty layer, or a slice of a puff's edge tile
+        // beyond the puff): every ray crosses it unchanged.
+        if (!any || planes_->occupied(slice_).empty()) return crossEmptySlice();
         for (int jv = 0; jv < r; ++jv)
             for (int ju = 0; ju < r; ++ju) mergeEvents(lamU_[ju], lamV_[jv], g_.sliceLen, ev_[size_t(jv * r + ju)]);
-        slice_ = ia % K;
         const int rr = r * r;
         for (int cls = 0; cls < rr; ++cls) {
             uCount_[cls] = 0;
@@ -772,49 +772,47 @@ private:
     // during the slice (its start row and the ones its v crossings take it to) is occupied.
     void sweepOccupiedRows() {
         const int r = g_.r, rr = r * r, nv = g_.nv;
-        cand_.clear();
-        if (planes_->occupied().size() * 4 >= size_t(nv) * 3) {  // most voxel rows occupied: every row
+        if (planes_->occupied(slice_).size() * 4 >= size_t(nv) * 3) {  // most voxel rows occupied: every row
             for (size_t row = 0; row < rows_count_; ++row) mark_[row] = stamp_;
-            for (size_t row = 0; row < rows_count_; ++row) {
-                const int cls = int(row % size_t(rr)), cellV = int(row / size_t(rr));
-                syncPending(row, cls, 0);
-                processRow(row, cellV, SV_[cls / r], ev_[size_t(cls)], true);
-                seenU_[row] = classU_[cls] + uCount_[cls];
-            }
+            for (int cellV = 0; cellV < nv; ++cellV)
+                for (int cls = 0; cls < rr; ++cls) sweepCandidate(size_t(cellV) * rr + size_t(cls), cellV, cls);
             return;
         }
+        // Candidates marked (mark_), their cells v in a bit set: walked in row order
+        // without a sort.
+        std::fill(cellBits_.begin(), cellBits_.end(), 0);
         for (int cls = 0; cls < rr; ++cls) {
             int shift = SV_[cls / r];
             int shifts[8], ns = 0;
             shifts[ns++] = shift;
             for (const Event& e : ev_[size_t(cls)])
                 if (e.kind == 2 && ns < 8) shifts[ns++] = shift = wrapNear(shift + g_.sv, nv);
-            for (int vr : planes_->occupied())
+            for (int vr : planes_->occupied(slice_))
                 for (int k = 0; k < ns; ++k) {
-                    const size_t row = size_t(wrapNear(vr - shifts[k], nv)) * rr + size_t(cls);
+                    const int cellV = wrapNear(vr - shifts[k], nv);
+                    const size_t row = size_t(cellV) * rr + size_t(cls);
                     if (mark_[row] != stamp_) {
                         mark_[row] = stamp_;
-                        cand_.push_back(row);
+                        cellBits_[size_t(cellV) / 64] |= std::uint64_t(1) << (cellV % 64);
                     }
                 }
         }
-        if (cand_.empty()) return;
-        // In row order; where the candidates fill most of the rows between the first and
-        // the last of them, a scan of those rows beats a sort.
-        const auto [lo, hi] = std::minmax_element(cand_.begin(), cand_.end());
-        const size_t first = *lo, last = *hi;
-        if (cand_.size() * 8 < last - first + 1) std::sort(cand_.begin(), cand_.end());
-        else {
-            cand_.clear();
-            for (size_t row = first; row <= last; ++row)
-                if (mark_[row] == stamp_) cand_.push_back(row);
-        }
-        for (size_t row : cand_) {
-            const int cls = int(row % size_t(rr)), cellV = int(row / size_t(rr));
-            syncPending(row, cls, 0);
-            processRow(row, cellV, SV_[cls / r], ev_[size_t(cls)], true);
-            seenU_[row] = classU_[cls] + uCount_[cls];  // this slice's u crossings are applied
-        }
+        for (size_t w = 0; w < cellBits_.size(); ++w)
+            for (std::uint64_t bits = cellBits_[w]; bits; bits &= bits - 1) {
+                const int cellV = int(w * 64) + __builtin_ctzll(bits);
+                for (int cls = 0; cls < rr; ++cls) {
+                    const size_t row = size_t(cellV) * rr + size_t(cls);
+                    if (mark_[row] == stamp_) sweepCandidate(row, cellV, cls);
+                }
+            }
+    }
+
+    // One candidate row through the slice (processRow), its class's u crossings of the
+    // slice applied with it.
+    void sweepCandidate(size_t row, int cellV, int cls) {
+        syncPending(row, cls, 0);
+        processRow(row, cellV, SV_[cls / g_.r], ev_[size_t(cls)], true);
+        seenU_[row] = classU_[cls] + uCount_[cls];
     }
 
     // The rows of a class that meet no allocated voxels in this slice (every row of an
@@ -844,7 +842,7 @@ private:
         }
     }
 
-    // A slice of an empty tile layer (no allocated voxels): every row crosses it unchanged,
+    // A slice without live chunks (an empty tile layer's, or one): every row crosses it unchanged,
     // so only the bookkeeping of crossUntouchedRows is left, taken from the crossings
     // directly (no merged events): a class's u crossings before each of its v crossings
     // (u first on ties, as mergeEvents orders them).
@@ -1126,7 +1124,7 @@ private:
     std::vector<int> uCount_;             // per class: u crossings in the current slice
     std::vector<std::uint32_t> mark_;     // per ray row: stamp_ when a candidate of the current slice
     std::uint32_t stamp_ = 0;
-    std::vector<size_t> cand_;  // the current slice's candidate rows
+    std::vector<std::uint64_t> cellBits_;  // the current slice's candidates' cells v, one bit each
     std::vector<ClassState> stU_, stV_;
     std::vector<double> lamU_[16], lamV_[16];  // this slice's crossings per class (r <= 16)
     int SV_[16] = {};
