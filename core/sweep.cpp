@@ -981,9 +981,10 @@ private:
     }
 
     // Sparse blocks: storage for 3 channels of cap columns (a power of two, >= 64): one
-    // a row that left gave back, else carved from the sweep's slabs (each twice the last,
-    // 64 KiB first), freed with the sweep: hundreds of rows come and go in every sweep,
-    // and malloc per block cost the r = 8 puffs' pair about 5% of its solve.
+    // a row that left gave back, else carved from the sweep's slabs of 64 KiB (under
+    // malloc's mmap threshold, so the heap reuses them already mapped), freed with the
+    // sweep: hundreds of rows come and go in every sweep, and malloc per block cost the
+    // r = 8 puffs' pair about 5% of its solve.
     float* takeBlock(int cap) {
         const size_t bin = size_t(__builtin_ctz(unsigned(cap / 64)));
         if (bin < freeBlocks_.size() && !freeBlocks_[bin].empty()) {
@@ -993,7 +994,7 @@ private:
         }
         const size_t need = 3 * size_t(cap);
         if (slabUsed_ + need > slabSize_) {
-            slabSize_ = std::max(std::max(slabSize_ * 2, size_t(16384)), need);
+            slabSize_ = std::max(kSlabFloats, need);
             slabs_.emplace_back(new float[slabSize_]);  // uninitialised: written before read
             slabUsed_ = 0;
         }
@@ -1115,6 +1116,7 @@ private:
     std::vector<std::vector<float*>> freeBlocks_;  // sparse: blocks of 64 << i columns no row holds
     std::vector<std::unique_ptr<float[]>> slabs_;  // sparse: where the blocks lie
     size_t slabSize_ = 0, slabUsed_ = 0;           // floats of the last slab, and carved from it
+    static constexpr size_t kSlabFloats = 16384;
     std::vector<int> cap_, org_;                   // per written ray row: its window holds columns org .. org + cap - 1
     std::vector<int> vlo_, vhi_;          // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
     std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)
