@@ -1117,7 +1117,7 @@ private:
     std::vector<std::unique_ptr<float[]>> slabs_;  // sparse: where the blocks lie
     size_t slabSize_ = 0, slabUsed_ = 0;           // floats of the last slab, and carved from it
     static constexpr size_t kSlabFloats = 16384;
-    std::vector<int> cap_, org_;                   // per written ray row: its window holds columns org .. org + cap - 1
+    std::vector<int> cap_, org_;          // per written ray row: its window holds columns org .. org + cap - 1
     std::vector<int> vlo_, vhi_;          // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
     std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)
     std::vector<int> pending_;            // per ray row: u crossings not yet applied (besides its class's, below)
