@@ -207,6 +207,9 @@ struct Geometry {
 };
 
 // A lattice class's position along one lateral axis: start cell shift S and fraction f.
+// The distance in slices between two crossings along an axis advancing d per slice.
+inline double crossingStep(double d) { return d != 0 ? 1.0 / std::fabs(d) : 0.0; }
+
 struct ClassState {
     long long S = 0;
     double f = 0;
@@ -214,10 +217,10 @@ struct ClassState {
 
 // The face crossings of one class along one axis within a slice, as lambda in (0, 1],
 // matching the reference DDA; advances the state to the next slice.
-void crossings(ClassState& st, double d, std::vector<double>& lam) {
+// step: 1 / |d| (crossingStep), fixed for a sweep.
+inline void crossings(ClassState& st, double d, double step, std::vector<double>& lam) {
     lam.clear();
     if (d != 0) {
-        const double step = 1.0 / std::fabs(d);
         double l = d > 0 ? (1 - st.f) * step : st.f * step;
         while (l < 1.0) {
             lam.push_back(l);
@@ -746,8 +749,8 @@ private:
         const int r = g_.r;
         for (int j = 0; j < r; ++j) {
             SV_[j] = wrap(stV_[j].S, g_.nv);
-            crossings(stU_[j], g_.du, lamU_[j]);
-            crossings(stV_[j], g_.dv, lamV_[j]);
+            crossings(stU_[j], g_.du, stepU_, lamU_[j]);
+            crossings(stV_[j], g_.dv, stepV_, lamV_[j]);
         }
         slice_ = ia % K;
         // No live chunk in the slice (an empty layer, or a slice of a puff's edge tile
@@ -1128,6 +1131,7 @@ private:
     std::uint32_t stamp_ = 0;
     std::vector<std::uint64_t> cellBits_;  // the current slice's candidates' cells v, one bit each
     std::vector<ClassState> stU_, stV_;
+    const double stepU_ = crossingStep(g_.du), stepV_ = crossingStep(g_.dv);
     std::vector<double> lamU_[16], lamV_[16];  // this slice's crossings per class (r <= 16)
     int SV_[16] = {};
     std::vector<Event> ev_[256];
