@@ -12,8 +12,9 @@
 // boundary radiance (Fattal's reinjection): one ray per row for a u crossing, a whole row
 // for a v crossing. Voxel rows of a slice that lie in unallocated tiles are skipped: rays
 // cross empty space unchanged; so are the chunks at either end of a row that hold no
-// extinction and no voxel the caller reads (Medium::wantedS; "dead chunks"), and a tile
-// layer with no allocated tile costs only the lattice's crossings (no gather, no events).
+// extinction and no voxel the caller reads (Medium::wantedS; "dead chunks"), and a slice
+// without a live chunk costs only the lattice's crossings (no events; an empty tile layer
+// no gather either).
 //
 // Segment (tau = sigma l, T = e^-tau, constant source Q):
 //   L_out = L T + Q e1,  Int L ds = L e1 + Q e2,
