@@ -966,14 +966,17 @@ private:
     void grow(size_t row, int needLo, int needHi) {
         int cap = 64;
         while (cap < needHi - needLo) cap *= 2;
+        // The spare columns on the side the window moves to (as recentre): a u shift moves
+        // the window by su, so for su > 0 it ends at needHi and the spare lies below.
+        const int org = g_.su > 0 ? needHi - cap : needLo;
         float* nb = takeBlock(cap);
         const int a = vlo_[row], b = vhi_[row];
         for (int c = 0; c < 3 && a < b; ++c)
-            std::memcpy(nb + size_t(c) * cap + (a - needLo), at(row, c, a), size_t(b - a) * sizeof(float));
+            std::memcpy(nb + size_t(c) * cap + (a - org), at(row, c, a), size_t(b - a) * sizeof(float));
         giveBlock(block_[row], cap_[row]);
         block_[row] = nb;
         cap_[row] = cap;
-        org_[row] = needLo;
+        org_[row] = org;
     }
 
     // A pristine row leaves (leaveRow): its nu rays escape holding the boundary radiance
