@@ -207,10 +207,10 @@ struct Geometry {
     }
 };
 
-// A lattice class's position along one lateral axis: start cell shift S and fraction f.
 // The distance in slices between two crossings along an axis advancing d per slice.
 inline double crossingStep(double d) { return d != 0 ? 1.0 / std::fabs(d) : 0.0; }
 
+// A lattice class's position along one lateral axis: start cell shift S and fraction f.
 struct ClassState {
     long long S = 0;
     double f = 0;
@@ -834,22 +834,22 @@ private:
                 ++uSoFar;
             } else if (e.kind == 2) {
                 const size_t row = size_t(wrapNear(edge - shift, nv)) * rr + size_t(cls);
-                if (mark_[row] == stamp_) {  // a candidate: left in processRow
-                } else if (pristine_[row]) {
-                    leavePristineRow();
-                } else {
-                    syncPending(row, cls, uSoFar);
-                    leaveRow(row);
+                if (mark_[row] != stamp_) {  // a candidate left in processRow
+                    if (pristine_[row]) leavePristineRow();
+                    else {
+                        syncPending(row, cls, uSoFar);
+                        leaveRow(row);
+                    }
                 }
                 shift = wrapNear(shift + g_.sv, nv);
             }
         }
     }
 
-    // A slice without live chunks (an empty tile layer's, or one): every row crosses it unchanged,
-    // so only the bookkeeping of crossUntouchedRows is left, taken from the crossings
-    // directly (no merged events): a class's u crossings before each of its v crossings
-    // (u first on ties, as mergeEvents orders them).
+    // A slice without a live chunk (an empty tile layer's, or one beyond a medium's edge):
+    // every row crosses it unchanged, so only the bookkeeping of crossUntouchedRows is
+    // left, taken from the crossings directly (no merged events): a class's u crossings
+    // before each of its v crossings (u first on ties, as mergeEvents orders them).
     void crossEmptySlice() {
         const int r = g_.r, nv = g_.nv, rr = r * r;
         const int edge = g_.sv > 0 ? nv - 1 : 0;
@@ -990,8 +990,8 @@ private:
     // Sparse blocks: storage for 3 channels of cap columns (a power of two, >= 64): one
     // a row that left gave back, else carved from the sweep's slabs of 64 KiB (under
     // malloc's mmap threshold, so the heap reuses them already mapped), freed with the
-    // sweep: hundreds of rows come and go in every sweep, and malloc per block cost the
-    // r = 8 puffs' pair about 5% of its solve.
+    // sweep: hundreds of rows come and go in every sweep, and malloc per block took about
+    // 3% of the r = 8 puffs' pair's samples.
     float* takeBlock(int cap) {
         const size_t bin = size_t(__builtin_ctz(unsigned(cap / 64)));
         if (bin < freeBlocks_.size() && !freeBlocks_[bin].empty()) {
