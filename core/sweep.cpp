@@ -235,6 +235,21 @@ inline void crossings(ClassState& st, double d, double step, std::vector<double>
     st.f = std::clamp(st.f, 0.0, std::nextafter(1.0, 0.0));
 }
 
+// crossings() for a step of at most one face per slice (|d| <= 1, so step >= 1): the
+// same arithmetic without a list; true with its lambda when the class crosses a face.
+inline bool unitCrossing(ClassState& st, double d, double step, double& lam) {
+    bool crossed = false;
+    if (d != 0) {
+        const double l = d > 0 ? (1 - st.f) * step : st.f * step;
+        if (l < 1.0) lam = l, crossed = true;
+    }
+    const long long k = crossed ? (d > 0 ? 1 : -1) : 0;
+    st.S += k;
+    st.f = st.f + d - double(k);
+    st.f = std::clamp(st.f, 0.0, std::nextafter(1.0, 0.0));
+    return crossed;
+}
+
 struct Event {
     double len;  // segment length (0 for a crossing)
     int kind;    // 0 segment, 1 u crossing, 2 v crossing
@@ -659,6 +674,7 @@ public:
         cellBits_.assign(size_t(g_.nv + 63) / 64, 0);
         uCount_.assign(size_t(r) * r, 0);
         for (int c = 0; c < 3; ++c) bnd_[c] = job.boundary[c];
+        unitSteps_ = std::fabs(g_.du) <= 1 && std::fabs(g_.dv) <= 1;
         // Every ray of the lattice starts holding the boundary radiance (padding lanes excluded).
         bndIn_ = std::uint64_t(r) * std::uint64_t(r) * std::uint64_t(g_.nu) * std::uint64_t(g_.nv);
         dk_ = shared && !ownDeposits ? float(g_.aPerp * job.weight) : 1.0f;
@@ -719,15 +735,22 @@ public:
         // without touching its state.
         const size_t rr = uCount_.size();
         std::uint64_t pristineRows = 0, pristineShifts = 0;
-        for (size_t row = 0, cls = 0; row < rows_count_; ++row, cls = cls + 1 == rr ? 0 : cls + 1) {
-            if (pristine_[row]) {
-                ++pristineRows;
-                pristineShifts += std::uint64_t(pending_[row] + classU_[cls] - seenU_[row]);
-                continue;
+        for (size_t cell = 0; cell < rows_count_; cell += rr) {
+            std::uint64_t written = 0;
+            for (size_t cls = 0; cls < rr; ++cls) {  // branch-free: most rows are pristine
+                const size_t row = cell + cls;
+                const std::uint64_t p = pristine_[row];
+                pristineRows += p;
+                pristineShifts += p * std::uint64_t(pending_[row] + classU_[cls] - seenU_[row]);
+                written |= p ^ 1;
             }
-            syncPending(row, int(cls), 0);
-            applyShift(row);
-            tallyRowEscape(row);
+            for (size_t cls = 0; written && cls < rr; ++cls) {
+                const size_t row = cell + cls;
+                if (pristine_[row]) continue;
+                syncPending(row, int(cls), 0);
+                applyShift(row);
+                tallyRowEscape(row);
+            }
         }
         bndOut_ += pristineRows * std::uint64_t(g_.nu) + pristineShifts;
         bndIn_ += pristineShifts;
@@ -748,15 +771,17 @@ private:
     // row of rays touches stay in L1 across the r^2 classes).
     void sweepSlice(int ia, bool any) {
         const int r = g_.r;
+        slice_ = ia % K;
+        // No live chunk in the slice (an empty layer, or a slice of a puff's edge tile
+        // beyond the puff): every ray crosses it unchanged.
+        const bool empty = !any || planes_->occupied(slice_).empty();
+        if (empty && unitSteps_) return crossEmptySliceUnit();
         for (int j = 0; j < r; ++j) {
             SV_[j] = wrap(stV_[j].S, g_.nv);
             crossings(stU_[j], g_.du, stepU_, lamU_[j]);
             crossings(stV_[j], g_.dv, stepV_, lamV_[j]);
         }
-        slice_ = ia % K;
-        // No live chunk in the slice (an empty layer, or a slice of a puff's edge tile
-        // beyond the puff): every ray crosses it unchanged.
-        if (!any || planes_->occupied(slice_).empty()) return crossEmptySlice();
+        if (empty) return crossEmptySlice();
         for (int jv = 0; jv < r; ++jv)
             for (int ju = 0; ju < r; ++ju) mergeEvents(lamU_[ju], lamV_[jv], g_.sliceLen, ev_[size_t(jv * r + ju)]);
         const int rr = r * r;
@@ -872,6 +897,34 @@ private:
             }
         }
         for (int cls = 0; cls < rr; ++cls) classU_[cls] += uCount_[cls];
+    }
+
+    // crossEmptySlice when no class crosses more than one face per axis and slice
+    // (unitSteps_: every sweep of cubic voxels), the crossings taken without lists or
+    // merged events: the slices of empty space cost a few operations per class. Rows
+    // leave in class order, as crossEmptySlice takes them (the escape sums add in order).
+    void crossEmptySliceUnit() {
+        const int r = g_.r, nv = g_.nv, rr = r * r;
+        const int edge = g_.sv > 0 ? nv - 1 : 0;
+        double lamU[16], lamV = 0;
+        bool crossU[16];
+        for (int ju = 0; ju < r; ++ju) crossU[ju] = unitCrossing(stU_[ju], g_.du, stepU_, lamU[ju]);
+        for (int jv = 0; jv < r; ++jv) {
+            const long long rowShift = stV_[jv].S;  // at slice start
+            if (!unitCrossing(stV_[jv], g_.dv, stepV_, lamV)) continue;
+            const size_t cell = size_t(wrap(edge - rowShift, nv));  // the row at the edge leaves
+            for (int ju = 0; ju < r; ++ju) {
+                const int cls = jv * r + ju;
+                const size_t row = cell * rr + size_t(cls);
+                if (pristine_[row]) leavePristineRow();
+                else {
+                    syncPending(row, cls, crossU[ju] && lamU[ju] <= lamV ? 1 : 0);
+                    leaveRow(row);
+                }
+            }
+        }
+        for (int jv = 0; jv < r; ++jv)
+            for (int ju = 0; ju < r; ++ju) classU_[size_t(jv * r + ju)] += crossU[ju];
     }
 
     // Brings a row's pending column shifts up to date: the u crossings its class made
@@ -1136,6 +1189,7 @@ private:
     std::vector<std::uint64_t> cellBits_;  // the current slice's candidates' cells v, one bit each
     std::vector<ClassState> stU_, stV_;
     const double stepU_ = crossingStep(g_.du), stepV_ = crossingStep(g_.dv);
+    bool unitSteps_ = false;                   // at most one face crossed per axis and slice (|du|, |dv| <= 1)
     std::vector<double> lamU_[16], lamV_[16];  // this slice's crossings per class (r <= 16)
     int SV_[16] = {};
     std::vector<Event> ev_[256];
