@@ -859,13 +859,7 @@ private:
                 ++uSoFar;
             } else if (e.kind == 2) {
                 const size_t row = size_t(wrapNear(edge - shift, nv)) * rr + size_t(cls);
-                if (mark_[row] != stamp_) {  // a candidate left in processRow
-                    if (pristine_[row]) leavePristineRow();
-                    else {
-                        syncPending(row, cls, uSoFar);
-                        leaveRow(row);
-                    }
-                }
+                if (mark_[row] != stamp_) leaveAtEdge(row, cls, uSoFar);  // a candidate left in processRow
                 shift = wrapNear(shift + g_.sv, nv);
             }
         }
@@ -887,12 +881,8 @@ private:
             size_t uSoFar = 0;
             for (const double l : lv) {
                 const size_t row = size_t(wrapNear(edge - shift, nv)) * rr + size_t(cls);
-                if (pristine_[row]) leavePristineRow();
-                else {
-                    while (uSoFar < lu.size() && lu[uSoFar] <= l) ++uSoFar;
-                    syncPending(row, cls, int(uSoFar));
-                    leaveRow(row);
-                }
+                while (uSoFar < lu.size() && lu[uSoFar] <= l) ++uSoFar;
+                leaveAtEdge(row, cls, int(uSoFar));
                 shift = wrapNear(shift + g_.sv, nv);
             }
         }
@@ -916,15 +906,20 @@ private:
             for (int ju = 0; ju < r; ++ju) {
                 const int cls = jv * r + ju;
                 const size_t row = cell * rr + size_t(cls);
-                if (pristine_[row]) leavePristineRow();
-                else {
-                    syncPending(row, cls, crossU[ju] && lamU[ju] <= lamV ? 1 : 0);
-                    leaveRow(row);
-                }
+                leaveAtEdge(row, cls, crossU[ju] && lamU[ju] <= lamV ? 1 : 0);
             }
         }
         for (int jv = 0; jv < r; ++jv)
             for (int ju = 0; ju < r; ++ju) classU_[size_t(jv * r + ju)] += crossU[ju];
+    }
+
+    // A row of an empty crossing reaches the block's v edge and leaves: a pristine one is
+    // only counted; a written one first takes the uSoFar u crossings of this slice that
+    // came before its v crossing.
+    void leaveAtEdge(size_t row, int cls, int uSoFar) {
+        if (pristine_[row]) return leavePristineRow();
+        syncPending(row, cls, uSoFar);
+        leaveRow(row);
     }
 
     // Brings a row's pending column shifts up to date: the u crossings its class made
