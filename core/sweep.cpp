@@ -661,15 +661,18 @@ public:
         C_ = f_.tnu * K + slack_;
         // The arena (attachArena) is uninitialised: a row's slot is written only when the row
         // first meets allocated voxels, so the rows of empty space cost no memory traffic.
-        block_.assign(rows_count_, nullptr);
-        cap_.assign(rows_count_, 0);
-        org_.assign(rows_count_, 0);
-        vlo_.assign(rows_count_, 0);
-        vhi_.assign(rows_count_, 0);
+        // A row's state arrays are set when it first becomes a candidate (touch): most
+        // rows of a sparse block never do, and a sweep's set-up costs only the two below.
+        block_.reset(new float*[rows_count_]);
+        cap_.reset(new int[rows_count_]);
+        org_.reset(new int[rows_count_]);
+        vlo_.reset(new int[rows_count_]);
+        vhi_.reset(new int[rows_count_]);
+        pending_.reset(new int[rows_count_]);
+        seenU_.reset(new int[rows_count_]);
         pristine_.assign(rows_count_, 1);
-        pending_.assign(rows_count_, 0);
-        seenU_.assign(rows_count_, 0);
         mark_.assign(rows_count_, 0);
+        touched_.assign((rows_count_ + 63) / 64, 0);
         classU_.assign(size_t(r) * r, 0);
         cellBits_.assign(size_t(g_.nv + 63) / 64, 0);
         uCount_.assign(size_t(r) * r, 0);
@@ -732,28 +735,28 @@ public:
     void finish(Tally& tally) {
         // A pristine row's rays all hold the boundary radiance: its pending shifts move k
         // of them out and k in, and all nu escape now (applyShift, tallyRowEscape), counted
-        // without touching its state.
+        // without touching its state. An untouched row has no shifts of its own: its
+        // pending ones are its class's u crossings. Written rows are touched; they leave in
+        // row order.
         const size_t rr = uCount_.size();
-        std::uint64_t pristineRows = 0, pristineShifts = 0;
-        for (size_t cell = 0; cell < rows_count_; cell += rr) {
-            std::uint64_t written = 0;
-            for (size_t cls = 0; cls < rr; ++cls) {  // branch-free: most rows are pristine
-                const size_t row = cell + cls;
-                const std::uint64_t p = pristine_[row];
-                pristineRows += p;
-                pristineShifts += p * std::uint64_t(pending_[row] + classU_[cls] - seenU_[row]);
-                written |= p ^ 1;
-            }
-            for (size_t cls = 0; written && cls < rr; ++cls) {
-                const size_t row = cell + cls;
-                if (pristine_[row]) continue;
+        std::uint64_t pristineRows = rows_count_;
+        std::int64_t pristineShifts = 0;
+        for (size_t cls = 0; cls < rr; ++cls) pristineShifts += std::int64_t(classU_[cls]) * g_.nv;
+        for (size_t w = 0; w < touched_.size(); ++w)
+            for (std::uint64_t bits = touched_[w]; bits; bits &= bits - 1) {
+                const size_t row = w * 64 + size_t(__builtin_ctzll(bits)), cls = row % rr;
+                if (pristine_[row]) {
+                    pristineShifts += pending_[row] - seenU_[row];
+                    continue;
+                }
+                --pristineRows;
+                pristineShifts -= classU_[cls];
                 syncPending(row, int(cls), 0);
                 applyShift(row);
                 tallyRowEscape(row);
             }
-        }
-        bndOut_ += pristineRows * std::uint64_t(g_.nu) + pristineShifts;
-        bndIn_ += pristineShifts;
+        bndOut_ += pristineRows * std::uint64_t(g_.nu) + std::uint64_t(pristineShifts);
+        bndIn_ += std::uint64_t(pristineShifts);
         const double k = g_.aPerp * job_.weight, V = m_.voxelVolume();
         const double alb[3] = {m_.albedo.r, m_.albedo.g, m_.albedo.b};
         for (int c = 0; c < 3; ++c) {
@@ -839,6 +842,7 @@ private:
     // One candidate row through the slice (processRow), its class's u crossings of the
     // slice applied with it.
     void sweepCandidate(size_t row, int cellV, int cls) {
+        touch(row);
         syncPending(row, cls, 0);
         processRow(row, cellV, SV_[cls / g_.r], ev_[size_t(cls)], true);
         seenU_[row] = classU_[cls] + uCount_[cls];
@@ -920,6 +924,17 @@ private:
         if (pristine_[row]) return leavePristineRow();
         syncPending(row, cls, uSoFar);
         leaveRow(row);
+    }
+
+    // A row's first time as a candidate: its state set (until then it is pristine, with
+    // no shifts of its own and no storage).
+    void touch(size_t row) {
+        std::uint64_t& word = touched_[row / 64];
+        const std::uint64_t bit = std::uint64_t(1) << (row % 64);
+        if (word & bit) return;
+        word |= bit;
+        block_[row] = nullptr;
+        pending_[row] = seenU_[row] = 0;
     }
 
     // Brings a row's pending column shifts up to date: the u crossings its class made
@@ -1021,7 +1036,7 @@ private:
         const int a = vlo_[row], b = vhi_[row];
         for (int c = 0; c < 3 && a < b; ++c)
             std::memcpy(nb + size_t(c) * cap + (a - org), at(row, c, a), size_t(b - a) * sizeof(float));
-        giveBlock(block_[row], cap_[row]);
+        if (block_[row]) giveBlock(block_[row], cap_[row]);
         block_[row] = nb;
         cap_[row] = cap;
         org_[row] = org;
@@ -1167,16 +1182,18 @@ private:
     bool dense_ = true;
     int C_ = 0;                                    // dense: columns of a row's slot, nu rounded up to tiles plus slack
     float* arena_ = nullptr;                       // dense: the rows' slots, 3 channels of C_ lanes each, in row order
-    std::vector<float*> block_;                    // per written ray row: its storage (sparse: null until touched)
+    std::unique_ptr<float*[]> block_;              // per touched ray row: its storage (sparse: null until written)
     std::vector<std::vector<float*>> freeBlocks_;  // sparse: blocks of 64 << i columns no row holds
     std::vector<std::unique_ptr<float[]>> slabs_;  // sparse: where the blocks lie
     size_t slabSize_ = 0, slabUsed_ = 0;           // floats of the last slab, and carved from it
     static constexpr size_t kSlabFloats = 16384;
-    std::vector<int> cap_, org_;          // per written ray row: its window holds columns org .. org + cap - 1
-    std::vector<int> vlo_, vhi_;          // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
+    // Per ray row; the arrays without a fill are set at the row's touch.
+    std::unique_ptr<int[]> cap_, org_;    // per written ray row: its window holds columns org .. org + cap - 1
+    std::unique_ptr<int[]> vlo_, vhi_;    // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
     std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)
-    std::vector<int> pending_;            // per ray row: u crossings not yet applied (besides its class's, below)
-    std::vector<int> seenU_;              // per ray row: its class's u-crossing count when it last synced
+    std::vector<std::uint64_t> touched_;  // per ray row, one bit: has been a candidate (its state below is set)
+    std::unique_ptr<int[]> pending_;      // per touched ray row: u crossings not yet applied (besides its class's)
+    std::unique_ptr<int[]> seenU_;        // per touched ray row: its class's u-crossing count when it last synced
     std::vector<int> classU_;             // per class: u crossings before the current slice
     std::vector<int> uCount_;             // per class: u crossings in the current slice
     std::vector<std::uint32_t> mark_;     // per ray row: stamp_ when a candidate of the current slice
