@@ -728,6 +728,7 @@ public:
     // allocated tiles.
     void sweepLayer(int layer, bool any) {
         const int s0 = layer * K, s1 = std::min(g_.na, s0 + K);
+        if (!any && unitSteps_) return crossEmptySlicesUnit(s1 - s0);  // an empty tile layer
         for (int k = 0; k < s1 - s0; ++k) sweepSlice(job_.sign > 0 ? s0 + k : s1 - 1 - k, any);
     }
 
@@ -778,7 +779,7 @@ private:
         // No live chunk in the slice (an empty layer, or a slice of a puff's edge tile
         // beyond the puff): every ray crosses it unchanged.
         const bool empty = !any || planes_->occupied(slice_).empty();
-        if (empty && unitSteps_) return crossEmptySliceUnit();
+        if (empty && unitSteps_) return crossEmptySlicesUnit(1);
         for (int j = 0; j < r; ++j) {
             SV_[j] = wrap(stV_[j].S, g_.nv);
             crossings(stU_[j], g_.du, stepU_, lamU_[j]);
@@ -893,28 +894,48 @@ private:
         for (int cls = 0; cls < rr; ++cls) classU_[cls] += uCount_[cls];
     }
 
-    // crossEmptySlice when no class crosses more than one face per axis and slice
-    // (unitSteps_: every sweep of cubic voxels), the crossings taken without lists or
-    // merged events: the slices of empty space cost a few operations per class. Rows
-    // leave in class order, as crossEmptySlice takes them (the escape sums add in order).
-    void crossEmptySliceUnit() {
-        const int r = g_.r, nv = g_.nv, rr = r * r;
+    // crossEmptySlice for a run of n slices, when no class crosses more than one face per
+    // axis and slice (unitSteps_: every sweep of cubic voxels): the crossings taken
+    // without lists or merged events, so a slice of empty space costs a few operations
+    // per class. Per slice, rows leave in class order, as crossEmptySlice takes them (the
+    // escape sums add in order). A class's u crossings depend on its u index alone; they
+    // join classU_ at the run's end, and a written row leaving before that takes the
+    // run's so far (uRun) with it. R: the lattice's r when fixed at compile time (the
+    // default 2, loops unrolled), 0 for any.
+    void crossEmptySlicesUnit(int n) {
+        if (g_.r == 2) return crossEmptySlicesUnit<2>(n);
+        crossEmptySlicesUnit<0>(n);
+    }
+    template <int R>
+    void crossEmptySlicesUnit(int n) {
+        const int r = R > 0 ? R : g_.r, nv = g_.nv, rr = r * r;
         const int edge = g_.sv > 0 ? nv - 1 : 0;
-        double lamU[16], lamV = 0;
-        bool crossU[16];
-        for (int ju = 0; ju < r; ++ju) crossU[ju] = unitCrossing(stU_[ju], g_.du, stepU_, lamU[ju]);
-        for (int jv = 0; jv < r; ++jv) {
-            const long long rowShift = stV_[jv].S;  // at slice start
-            if (!unitCrossing(stV_[jv], g_.dv, stepV_, lamV)) continue;
-            const size_t cell = size_t(wrap(edge - rowShift, nv));  // the row at the edge leaves
-            for (int ju = 0; ju < r; ++ju) {
-                const int cls = jv * r + ju;
-                const size_t row = cell * rr + size_t(cls);
-                leaveAtEdge(row, cls, crossU[ju] && lamU[ju] <= lamV ? 1 : 0);
+        int uRun[16] = {}, edgeCell[16];  // edgeCell: per v index, the cell of the row at the edge
+        for (int jv = 0; jv < r; ++jv) edgeCell[jv] = wrap(edge - stV_[jv].S, nv);
+        std::uint64_t pristineLeaves = 0;
+        for (int k = 0; k < n; ++k) {
+            double lamU[16], lamV = 0;
+            bool crossU[16];
+            for (int ju = 0; ju < r; ++ju) crossU[ju] = unitCrossing(stU_[ju], g_.du, stepU_, lamU[ju]);
+            for (int jv = 0; jv < r; ++jv) {
+                if (!unitCrossing(stV_[jv], g_.dv, stepV_, lamV)) continue;
+                const size_t cell = size_t(edgeCell[jv]);  // the row at the edge leaves
+                edgeCell[jv] = wrapNear(edgeCell[jv] - g_.sv, nv);
+                for (int ju = 0; ju < r; ++ju) {
+                    const size_t row = cell * rr + size_t(jv * r + ju);
+                    if (pristine_[row]) {
+                        ++pristineLeaves;
+                        continue;
+                    }
+                    syncPending(row, jv * r + ju, uRun[ju] + (crossU[ju] && lamU[ju] <= lamV ? 1 : 0));
+                    leaveRow(row);
+                }
             }
+            for (int ju = 0; ju < r; ++ju) uRun[ju] += crossU[ju];
         }
-        for (int jv = 0; jv < r; ++jv)
-            for (int ju = 0; ju < r; ++ju) classU_[size_t(jv * r + ju)] += crossU[ju];
+        bndOut_ += pristineLeaves * std::uint64_t(g_.nu);  // leavePristineRow, counted once
+        bndIn_ += pristineLeaves * std::uint64_t(g_.nu);
+        for (int cls = 0; cls < rr; ++cls) classU_[size_t(cls)] += uRun[cls % r];
     }
 
     // A row of an empty crossing reaches the block's v edge and leaves: a pristine one is
