@@ -661,8 +661,9 @@ public:
         C_ = f_.tnu * K + slack_;
         // The arena (attachArena) is uninitialised: a row's slot is written only when the row
         // first meets allocated voxels, so the rows of empty space cost no memory traffic.
-        // A row's state arrays are set when it first becomes a candidate (touch): most
-        // rows of a sparse block never do, and a sweep's set-up costs only the two below.
+        // A row's state is set when it first becomes a candidate (touch) or is written
+        // (materialize, grow): most rows of a sparse block never are, so a sweep's set-up
+        // fills only the flags below.
         block_.reset(new float*[rows_count_]);
         cap_.reset(new int[rows_count_]);
         org_.reset(new int[rows_count_]);
@@ -1208,7 +1209,8 @@ private:
     std::vector<std::unique_ptr<float[]>> slabs_;  // sparse: where the blocks lie
     size_t slabSize_ = 0, slabUsed_ = 0;           // floats of the last slab, and carved from it
     static constexpr size_t kSlabFloats = 16384;
-    // Per ray row; the arrays without a fill are set at the row's touch.
+    // Per ray row; block_, pending_ and seenU_ are set at the row's touch, the window and
+    // valid columns when it is written.
     std::unique_ptr<int[]> cap_, org_;    // per written ray row: its window holds columns org .. org + cap - 1
     std::unique_ptr<int[]> vlo_, vhi_;    // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
     std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)
