@@ -924,18 +924,13 @@ private:
                 edgeCell[jv] = wrapNear(edgeCell[jv] - g_.sv, nv);
                 for (int ju = 0; ju < r; ++ju) {
                     const size_t row = cell * rr + size_t(jv * r + ju);
-                    if (pristine_[row]) {
-                        ++pristineLeaves;
-                        continue;
-                    }
-                    syncPending(row, jv * r + ju, uRun[ju] + (crossU[ju] && lamU[ju] <= lamV ? 1 : 0));
-                    leaveRow(row);
+                    if (pristine_[row]) ++pristineLeaves;  // counted once, below
+                    else leaveAtEdge(row, jv * r + ju, uRun[ju] + (crossU[ju] && lamU[ju] <= lamV ? 1 : 0));
                 }
             }
             for (int ju = 0; ju < r; ++ju) uRun[ju] += crossU[ju];
         }
-        bndOut_ += pristineLeaves * std::uint64_t(g_.nu);  // leavePristineRow, counted once
-        bndIn_ += pristineLeaves * std::uint64_t(g_.nu);
+        leavePristineRows(pristineLeaves);
         for (int cls = 0; cls < rr; ++cls) classU_[size_t(cls)] += uRun[cls % r];
     }
 
@@ -943,7 +938,7 @@ private:
     // only counted; a written one first takes the uSoFar u crossings of this slice that
     // came before its v crossing.
     void leaveAtEdge(size_t row, int cls, int uSoFar) {
-        if (pristine_[row]) return leavePristineRow();
+        if (pristine_[row]) return leavePristineRows(1);
         syncPending(row, cls, uSoFar);
         leaveRow(row);
     }
@@ -1064,12 +1059,12 @@ private:
         org_[row] = org;
     }
 
-    // A pristine row leaves (leaveRow): its nu rays escape holding the boundary radiance
-    // and as many re-enter. Its pending column shifts (each one ray out, one in) stay
-    // pending and are counted when it is next synced: integer counts, the same totals.
-    void leavePristineRow() {
-        bndOut_ += std::uint64_t(g_.nu);
-        bndIn_ += std::uint64_t(g_.nu);
+    // `rows` pristine rows leave (leaveRow): each one's nu rays escape holding the boundary
+    // radiance and as many re-enter. Their pending column shifts (each one ray out, one in)
+    // stay pending and are counted when next synced: integer counts, the same totals.
+    void leavePristineRows(std::uint64_t rows) {
+        bndOut_ += rows * std::uint64_t(g_.nu);
+        bndIn_ += rows * std::uint64_t(g_.nu);
     }
 
     // Sparse blocks: storage for 3 channels of cap columns (a power of two, >= 64): one
