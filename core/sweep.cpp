@@ -383,11 +383,13 @@ struct PlaneRow {
 };
 
 // Plane offset of the sigma of (row cv, slice s of the layer, column cu); cu must lie in
-// the row's span.
+// the row's span. All three are >= 0: unsigned division by the tile size is a shift.
 inline size_t planeIndex(const PlaneRow* rows, int cv, int s, int cu) {
-    constexpr int K = Medium::kTile;
-    const PlaneRow& pr = rows[cv / K];
-    return pr.base + (size_t((cv % K) * K + s) * pr.width + size_t(cu / K - pr.first)) * kChunk + size_t(cu % K);
+    constexpr unsigned K = Medium::kTile;
+    const unsigned v = unsigned(cv), u = unsigned(cu);
+    const PlaneRow& pr = rows[v / K];
+    return pr.base + (size_t((v % K) * K + unsigned(s)) * unsigned(pr.width) + size_t(u / K - unsigned(pr.first))) * kChunk +
+           size_t(u % K);
 }
 
 // What a gather reads: the medium's sigma, the job's source (q = sigma srcScale src) and
@@ -669,6 +671,7 @@ public:
         org_.reset(new int[rows_count_]);
         vlo_.reset(new int[rows_count_]);
         vhi_.reset(new int[rows_count_]);
+        padOrg_.reset(new int[rows_count_]);
         pending_.reset(new int[rows_count_]);
         seenU_.reset(new int[rows_count_]);
         pristine_.assign(rows_count_, 1);
@@ -972,8 +975,12 @@ private:
     double sumColumns(size_t row, int c, int a, int b) {
         const int lo = std::clamp(vlo_[row], a, b), hi = std::clamp(vhi_[row], lo, b);
         double sum = double(bnd_[c]) * double((b - a) - (hi - lo));
-        const float* x = hi > lo ? at(row, c, lo) : nullptr;
         const int n = hi - lo;
+        // The sums below for no valid column and for one (a u shift's leaving ray, the
+        // common case), written out: the same additions, in the same order.
+        if (n <= 0) return sum + 0.0;
+        const float* x = at(row, c, lo);
+        if (n == 1) return sum + (0.0 + double(x[0]));
         double part[4] = {0, 0, 0, 0};  // four sums in turn (a tally: the order is fixed, not the grids')
         int i = 0;
         for (; i + 4 <= n; i += 4)
@@ -995,6 +1002,7 @@ private:
         std::uint8_t& p = pristine_[row];
         if (!p) return;
         vlo_[row] = vhi_[row] = 0;
+        padOrg_[row] = kNoPadding;
         if (dense_) {
             block_[row] = arena_ + row * 3 * size_t(C_);
             cap_[row] = C_;
@@ -1017,16 +1025,33 @@ private:
             else grow(row, needLo, needHi);
         }
         const int hi = std::min(end, g_.nu);
-        for (int c = 0; c < 3; ++c) {
-            if (a >= b) std::fill(at(row, c, lo), at(row, c, lo) + std::max(0, hi - lo), bnd_[c]);
-            else {
-                if (lo < a) std::fill(at(row, c, lo), at(row, c, a), bnd_[c]);
-                if (hi > b) std::fill(at(row, c, b), at(row, c, b) + (hi - b), bnd_[c]);
-            }
-            if (end > g_.nu) std::fill(at(row, c, g_.nu), at(row, c, g_.nu) + (end - g_.nu), bnd_[c]);
+        if (a >= b) fillBoundary(row, lo, hi);
+        else {
+            fillBoundary(row, lo, a);
+            fillBoundary(row, b, hi);
         }
+        fillPadding(row, end);
         if (a >= b) a = lo, b = hi;
         else a = std::min(a, lo), b = std::max(b, hi);
+    }
+
+    // The padding lanes [nu, end) of a written row (end > nu: the last chunk's) hold the
+    // boundary radiance, filled once per window position: the kernel leaves them as they
+    // are (sigma and the source are 0 there: T = 1 and q e1 = 0 exactly), and only a move
+    // of the window (a u shift, recentre, grow) or a new slot (materialize) puts other
+    // columns' memory there. Nothing reads them but the kernel's padding lanes.
+    void fillPadding(size_t row, int end) {
+        if (end <= g_.nu || padOrg_[row] == org_[row]) return;
+        fillBoundary(row, g_.nu, end);
+        padOrg_[row] = org_[row];
+    }
+
+    // Columns [from, to) of a written row's three channels take the boundary radiance.
+    void fillBoundary(size_t row, int from, int to) {
+        if (from >= to) return;
+        float* p = at(row, 0, from);
+        const size_t channelStride = size_t(cap_[row]);
+        for (int c = 0; c < 3; ++c, p += channelStride) std::fill(p, p + (to - from), bnd_[c]);
     }
 
     // Dense blocks: moves the window so it holds columns [needLo, needHi) with all the slack
@@ -1057,6 +1082,7 @@ private:
         block_[row] = nb;
         cap_[row] = cap;
         org_[row] = org;
+        padOrg_[row] = kNoPadding;
     }
 
     // `rows` pristine rows leave (leaveRow): each one's nu rays escape holding the boundary
@@ -1208,6 +1234,8 @@ private:
     // valid columns when it is written.
     std::unique_ptr<int[]> cap_, org_;    // per written ray row: its window holds columns org .. org + cap - 1
     std::unique_ptr<int[]> vlo_, vhi_;    // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
+    std::unique_ptr<int[]> padOrg_;       // per written ray row: org_ when its padding lanes were filled
+    static constexpr int kNoPadding = std::numeric_limits<int>::min();  // padOrg_: not filled in this slot
     std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)
     std::vector<std::uint64_t> touched_;  // per ray row, one bit: has been a candidate (its state below is set)
     std::unique_ptr<int[]> pending_;      // per touched ray row: u crossings not yet applied (besides its class's)
