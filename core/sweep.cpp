@@ -388,7 +388,8 @@ inline size_t planeIndex(const PlaneRow* rows, int cv, int s, int cu) {
     constexpr unsigned K = Medium::kTile;
     const unsigned v = unsigned(cv), u = unsigned(cu);
     const PlaneRow& pr = rows[v / K];
-    return pr.base + (size_t((v % K) * K + unsigned(s)) * unsigned(pr.width) + size_t(u / K - unsigned(pr.first))) * kChunk +
+    return pr.base +
+           (size_t((v % K) * K + unsigned(s)) * unsigned(pr.width) + size_t(u / K - unsigned(pr.first))) * kChunk +
            size_t(u % K);
 }
 
@@ -1232,9 +1233,9 @@ private:
     static constexpr size_t kSlabFloats = 16384;
     // Per ray row; block_, pending_ and seenU_ are set at the row's touch, the window and
     // valid columns when it is written.
-    std::unique_ptr<int[]> cap_, org_;    // per written ray row: its window holds columns org .. org + cap - 1
-    std::unique_ptr<int[]> vlo_, vhi_;    // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
-    std::unique_ptr<int[]> padOrg_;       // per written ray row: org_ when its padding lanes were filled
+    std::unique_ptr<int[]> cap_, org_;  // per written ray row: its window holds columns org .. org + cap - 1
+    std::unique_ptr<int[]> vlo_, vhi_;  // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
+    std::unique_ptr<int[]> padOrg_;     // per written ray row: org_ when its padding lanes were filled
     static constexpr int kNoPadding = std::numeric_limits<int>::min();  // padOrg_: not filled in this slot
     std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)
     std::vector<std::uint64_t> touched_;  // per ray row, one bit: has been a candidate (its state below is set)
