@@ -733,12 +733,16 @@ public:
     // allocated tiles.
     void sweepLayer(int layer, bool any) {
         const int s0 = layer * K, s1 = std::min(g_.na, s0 + K);
-        if (!any && unitSteps_) return crossEmptySlicesUnit(s1 - s0);  // an empty tile layer
+        if (!any && unitSteps_) {  // an empty tile layer: joins the run of empty slices
+            emptyRun_ += s1 - s0;
+            return;
+        }
         for (int k = 0; k < s1 - s0; ++k) sweepSlice(job_.sign > 0 ? s0 + k : s1 - 1 - k, any);
     }
 
     // After the last layer: the rays still in the block escape; adds this sweep's tally.
     void finish(Tally& tally) {
+        crossEmptyRun();
         // A pristine row's rays all hold the boundary radiance: its pending shifts move k
         // of them out and k in, and all nu escape now (applyShift, tallyRowEscape), counted
         // without touching its state. An untouched row has no shifts of its own: its
@@ -784,7 +788,11 @@ private:
         // No live chunk in the slice (an empty layer, or a slice of a puff's edge tile
         // beyond the puff): every ray crosses it unchanged.
         const bool empty = !any || planes_->occupied(slice_).empty();
-        if (empty && unitSteps_) return crossEmptySlicesUnit(1);
+        if (empty && unitSteps_) {
+            ++emptyRun_;
+            return;
+        }
+        crossEmptyRun();
         for (int j = 0; j < r; ++j) {
             SV_[j] = wrap(stV_[j].S, g_.nv);
             crossings(stU_[j], g_.du, stepU_, lamU_[j]);
@@ -907,23 +915,32 @@ private:
     // join classU_ at the run's end, and a written row leaving before that takes the
     // run's so far (uRun) with it. R: the lattice's r when fixed at compile time (the
     // default 2, loops unrolled), 0 for any.
+    // The run of empty slices since the last occupied one (unit steps), crossed at once
+    // before the next occupied slice or the sweep's end: the same crossings, in order.
+    void crossEmptyRun() {
+        if (emptyRun_ == 0) return;
+        crossEmptySlicesUnit(emptyRun_);
+        emptyRun_ = 0;
+    }
     void crossEmptySlicesUnit(int n) {
         if (g_.r == 2) return crossEmptySlicesUnit<2>(n);
         crossEmptySlicesUnit<0>(n);
     }
     template <int R>
-    void crossEmptySlicesUnit(int n) {
+    [[gnu::noinline]] void crossEmptySlicesUnit(int n) {  // kept apart: processRow's inlining stays as it was
         const int r = R > 0 ? R : g_.r, nv = g_.nv, rr = r * r;
         const int edge = g_.sv > 0 ? nv - 1 : 0;
         int uRun[16] = {}, edgeCell[16];  // edgeCell: per v index, the cell of the row at the edge
         for (int jv = 0; jv < r; ++jv) edgeCell[jv] = wrap(edge - stV_[jv].S, nv);
         std::uint64_t pristineLeaves = 0;
+        // The directions in locals: the class states' stores cannot then alias them.
+        const double du = g_.du, dv = g_.dv, stepU = stepU_, stepV = stepV_;
         for (int k = 0; k < n; ++k) {
             double lamU[16], lamV = 0;
             bool crossU[16];
-            for (int ju = 0; ju < r; ++ju) crossU[ju] = unitCrossing(stU_[ju], g_.du, stepU_, lamU[ju]);
+            for (int ju = 0; ju < r; ++ju) crossU[ju] = unitCrossing(stU_[ju], du, stepU, lamU[ju]);
             for (int jv = 0; jv < r; ++jv) {
-                if (!unitCrossing(stV_[jv], g_.dv, stepV_, lamV)) continue;
+                if (!unitCrossing(stV_[jv], dv, stepV, lamV)) continue;
                 const size_t cell = size_t(edgeCell[jv]);  // the row at the edge leaves
                 edgeCell[jv] = wrapNear(edgeCell[jv] - g_.sv, nv);
                 for (int ju = 0; ju < r; ++ju) {
@@ -1052,7 +1069,13 @@ private:
         if (from >= to) return;
         float* p = at(row, 0, from);
         const size_t channelStride = size_t(cap_[row]);
-        for (int c = 0; c < 3; ++c, p += channelStride) std::fill(p, p + (to - from), bnd_[c]);
+        const int n = to - from;
+        for (int c = 0; c < 3; ++c, p += channelStride) {
+            const float v = bnd_[c];
+            int i = 0;
+            for (; i + 4 <= n; i += 4) p[i] = p[i + 1] = p[i + 2] = p[i + 3] = v;  // one vector store
+            for (; i < n; ++i) p[i] = v;
+        }
     }
 
     // Dense blocks: moves the window so it holds columns [needLo, needHi) with all the slack
@@ -1249,6 +1272,7 @@ private:
     std::vector<ClassState> stU_, stV_;
     const double stepU_ = crossingStep(g_.du), stepV_ = crossingStep(g_.dv);
     bool unitSteps_ = false;                   // at most one face crossed per axis and slice (|du|, |dv| <= 1)
+    int emptyRun_ = 0;                         // unit steps: empty slices not yet crossed (crossEmptyRun)
     std::vector<double> lamU_[16], lamV_[16];  // this slice's crossings per class (r <= 16)
     int SV_[16] = {};
     std::vector<Event> ev_[256];
