@@ -672,7 +672,7 @@ public:
         org_.reset(new int[rows_count_]);
         vlo_.reset(new int[rows_count_]);
         vhi_.reset(new int[rows_count_]);
-        padOrg_.reset(new int[rows_count_]);
+        padFilled_.reset(new std::uint8_t[rows_count_]);
         pending_.reset(new int[rows_count_]);
         seenU_.reset(new int[rows_count_]);
         pristine_.assign(rows_count_, 1);
@@ -1020,7 +1020,7 @@ private:
         std::uint8_t& p = pristine_[row];
         if (!p) return;
         vlo_[row] = vhi_[row] = 0;
-        padOrg_[row] = kNoPadding;
+        padFilled_[row] = 0;
         if (dense_) {
             block_[row] = arena_ + row * 3 * size_t(C_);
             cap_[row] = C_;
@@ -1054,14 +1054,15 @@ private:
     }
 
     // The padding lanes [nu, end) of a written row (end > nu: the last chunk's) hold the
-    // boundary radiance, filled once per window position: the kernel leaves them as they
-    // are (sigma and the source are 0 there: T = 1 and q e1 = 0 exactly), and only a move
-    // of the window (a u shift, recentre, grow) or a new slot (materialize) puts other
-    // columns' memory there. Nothing reads them but the kernel's padding lanes.
+    // boundary radiance, so the kernel's padding lanes compute on defined, finite values
+    // (nothing reads their results). Filled once and kept: the kernel leaves them as they
+    // are (sigma and the source are 0 there: T = 1 and q e1 = 0 exactly); each move of
+    // the window (a u shift, recentre, grow) or a new slot (materialize) puts other memory
+    // there and clears the row's flag.
     void fillPadding(size_t row, int end) {
-        if (end <= g_.nu || padOrg_[row] == org_[row]) return;
+        if (end <= g_.nu || padFilled_[row]) return;
         fillBoundary(row, g_.nu, end);
-        padOrg_[row] = org_[row];
+        padFilled_[row] = 1;
     }
 
     // Columns [from, to) of a written row's three channels take the boundary radiance.
@@ -1088,6 +1089,7 @@ private:
             std::memmove(slot + (a - to), slot + (a - from), size_t(b - a) * sizeof(float));
         }
         org_[row] = to;
+        padFilled_[row] = 0;
     }
 
     // Sparse blocks: a new block (a power of two of columns) whose window holds columns
@@ -1106,7 +1108,7 @@ private:
         block_[row] = nb;
         cap_[row] = cap;
         org_[row] = org;
-        padOrg_[row] = kNoPadding;
+        padFilled_[row] = 0;
     }
 
     // `rows` pristine rows leave (leaveRow): each one's nu rays escape holding the boundary
@@ -1186,10 +1188,12 @@ private:
             int& hi = vhi_[row];
             if (g_.su > 0) {  // column c is now column c + step
                 org_[row] += step;
+                padFilled_[row] = 0;
                 lo = std::min(lo + step, nu);
                 hi = std::min(hi + step, nu);
             } else {  // column c is now column c - step
                 org_[row] -= step;
+                padFilled_[row] = 0;
                 lo = std::max(lo - step, 0);
                 hi = std::max(hi - step, 0);
             }
@@ -1258,15 +1262,14 @@ private:
     // valid columns when it is written.
     std::unique_ptr<int[]> cap_, org_;  // per written ray row: its window holds columns org .. org + cap - 1
     std::unique_ptr<int[]> vlo_, vhi_;  // per written ray row: columns [vlo, vhi) hold its rays, the others bnd
-    std::unique_ptr<int[]> padOrg_;     // per written ray row: org_ when its padding lanes were filled
-    static constexpr int kNoPadding = std::numeric_limits<int>::min();  // padOrg_: not filled in this slot
-    std::vector<std::uint8_t> pristine_;  // per ray row: every ray holds bnd_ (no storage)
-    std::vector<std::uint64_t> touched_;  // per ray row, one bit: has been a candidate (its state below is set)
-    std::unique_ptr<int[]> pending_;      // per touched ray row: u crossings not yet applied (besides its class's)
-    std::unique_ptr<int[]> seenU_;        // per touched ray row: its class's u-crossing count when it last synced
-    std::vector<int> classU_;             // per class: u crossings before the current slice
-    std::vector<int> uCount_;             // per class: u crossings in the current slice
-    std::vector<std::uint32_t> mark_;     // per ray row: stamp_ when a candidate of the current slice
+    std::unique_ptr<std::uint8_t[]> padFilled_;  // per written ray row: its padding lanes hold bnd_ (fillPadding)
+    std::vector<std::uint8_t> pristine_;         // per ray row: every ray holds bnd_ (no storage)
+    std::vector<std::uint64_t> touched_;         // per ray row, one bit: has been a candidate (its state below is set)
+    std::unique_ptr<int[]> pending_;   // per touched ray row: u crossings not yet applied (besides its class's)
+    std::unique_ptr<int[]> seenU_;     // per touched ray row: its class's u-crossing count when it last synced
+    std::vector<int> classU_;          // per class: u crossings before the current slice
+    std::vector<int> uCount_;          // per class: u crossings in the current slice
+    std::vector<std::uint32_t> mark_;  // per ray row: stamp_ when a candidate of the current slice
     std::uint32_t stamp_ = 0;
     std::vector<std::uint64_t> cellBits_;  // the current slice's candidates' cells v, one bit each
     std::vector<ClassState> stU_, stV_;
