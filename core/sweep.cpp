@@ -1054,11 +1054,13 @@ private:
     }
 
     // The padding lanes [nu, end) of a written row (end > nu: the last chunk's) hold the
-    // boundary radiance, so the kernel's padding lanes compute on defined, finite values
-    // (nothing reads their results). Filled once and kept: the kernel leaves them as they
-    // are (sigma and the source are 0 there: T = 1 and q e1 = 0 exactly); each move of
-    // the window (a u shift, recentre, grow) or a new slot (materialize) puts other memory
-    // there and clears the row's flag.
+    // boundary radiance, so the kernel's padding lanes compute on normal, finite numbers:
+    // nothing reads their results (without the fill, outputs are bit-identical and
+    // memcheck is clean), but a slot's stale bits can be denormal or NaN patterns, which
+    // slow the whole vector instruction on some CPUs. Filled once and kept: the kernel
+    // leaves them as they are (sigma and the source are 0 there: T = 1 and q e1 = 0
+    // exactly); each move of the window (a u shift, recentre, grow) or a new slot
+    // (materialize) puts other memory there and clears the row's flag.
     void fillPadding(size_t row, int end) {
         if (end <= g_.nu || padFilled_[row]) return;
         fillBoundary(row, g_.nu, end);
