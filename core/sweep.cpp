@@ -907,6 +907,14 @@ private:
         for (int cls = 0; cls < rr; ++cls) classU_[cls] += uCount_[cls];
     }
 
+    // The run of empty slices since the last occupied one (unit steps), crossed at once
+    // before the next occupied slice or the sweep's end: the same crossings, in order.
+    void crossEmptyRun() {
+        if (emptyRun_ == 0) return;
+        crossEmptySlicesUnit(emptyRun_);
+        emptyRun_ = 0;
+    }
+
     // crossEmptySlice for a run of n slices, when no class crosses more than one face per
     // axis and slice (unitSteps_: every sweep of cubic voxels): the crossings taken
     // without lists or merged events, so a slice of empty space costs a few operations
@@ -915,13 +923,6 @@ private:
     // join classU_ at the run's end, and a written row leaving before that takes the
     // run's so far (uRun) with it. R: the lattice's r when fixed at compile time (the
     // default 2, loops unrolled), 0 for any.
-    // The run of empty slices since the last occupied one (unit steps), crossed at once
-    // before the next occupied slice or the sweep's end: the same crossings, in order.
-    void crossEmptyRun() {
-        if (emptyRun_ == 0) return;
-        crossEmptySlicesUnit(emptyRun_);
-        emptyRun_ = 0;
-    }
     void crossEmptySlicesUnit(int n) {
         if (g_.r == 2) return crossEmptySlicesUnit<2>(n);
         crossEmptySlicesUnit<0>(n);
@@ -933,7 +934,7 @@ private:
         int uRun[16] = {}, edgeCell[16];  // edgeCell: per v index, the cell of the row at the edge
         for (int jv = 0; jv < r; ++jv) edgeCell[jv] = wrap(edge - stV_[jv].S, nv);
         std::uint64_t pristineLeaves = 0;
-        // The directions in locals: the class states' stores cannot then alias them.
+        // The directions in locals (not reloaded after each store to a class state).
         const double du = g_.du, dv = g_.dv, stepU = stepU_, stepV = stepV_;
         for (int k = 0; k < n; ++k) {
             double lamU[16], lamV = 0;
