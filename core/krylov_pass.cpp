@@ -78,6 +78,25 @@ double LpmSolve::unaccounted(const Rhs& B, const std::vector<float>& KX, const s
     return miss / 3.0;
 }
 
+// The residual norm GMRES stops at. On the fine grid it is the stop test of source
+// iteration (LpmSolve::iterate): what X misses is A^-1 R, R = B - (I - K) X the residual,
+// and A^-1 = sum_j K^j. K is a non-negative operator and each pass scatters at most the
+// largest albedo c of what it propagates, so P(A^-1 R) <= P(R) / (1 - c) in scattered
+// power P; the solve stops when that bound is below tol * input. (The per-pass ratio rho
+// is no bound: at the switch it can be 0.8 where the slowest mode decays at 0.9999.)
+// GMRES measures R in its weighted L2 norm; B's power (the last pass's scattered power)
+// converts: |R|_w <= tol * input * (1 - c) / P(B) * |B|_w, never tighter than the fixed
+// tenth of the tolerance relative to B used before (and still on the coarse grid of a
+// two-grid solve, where what GMRES leaves goes into the cycle's next fine residual, which
+// the cycle measures and corrects).
+double LpmSolve::gmresTarget(double bNorm, bool coarse) const {
+    const double relativeToB = 0.1 * s_.tolerance;
+    const double last = res_.passes.back().scattered;
+    if (coarse || !(last > 0) || !(res_.input > 0)) return relativeToB * bNorm;
+    const double c = std::max({m_.albedo[0], m_.albedo[1], m_.albedo[2]});
+    return std::max(relativeToB, s_.tolerance * res_.input * (1.0 - c) / last) * bNorm;
+}
+
 // Remaining sum X = sum_{j >= 1} U_{k+j} solves (I - K) X = B, B = `next`, where K is one
 // propagation pass (source -> next unshot), in the inner product <a, b> = sum_d w_d a.b.
 void LpmSolve::finishWithGmres() {
@@ -123,7 +142,7 @@ void LpmSolve::finishWithGmres() {
     const int restart = int(std::clamp<size_t>(size_t(s_.krylovBytes / double(std::max<size_t>(1, vecBytes))), 3,
                                                size_t(std::max(4, s_.krylovRestart))));
     const auto budget = [&] { return pass_ < s_.maxOrders; };
-    const double target = s_.tolerance * 0.1 * bNorm;
+    const double target = gmresTarget(bNorm, coarse);
     GmresReport rep;
     if (halfKrylov)
         rep = solveGmres(A, basisOperator(), halfB, binW, target, restart, budget, X, std::move(firstResidual));

@@ -64,6 +64,7 @@ private:
     // The GMRES continuation (core/krylov_pass.cpp).
     void finishWithGmres();
     HalfOperator basisOperator();
+    double gmresTarget(double bNorm, bool coarse) const;  ///< the residual norm GMRES stops at
     void startFromSourceSum(std::vector<float>& B, HalfBuffer& halfB, std::vector<float>& X,
                             std::vector<float>& firstResidual, Tally& sumTally);
     template <class Rhs>
