@@ -2,9 +2,10 @@
 //   lpm_make_volume plume OUT.vdb [--res N] [--seed S]
 //       a rising turbulent smoke plume in an N x 2N x N box (Y up); N = 112 gives about
 //       1M active voxels in a 2.8M-voxel box, like a production Mantaflow smoke
-//   lpm_make_volume puffs OUT.vdb [--res N] [--count 1|2] [--radius R]
+//   lpm_make_volume puffs OUT.vdb [--res N] [--count 1|2] [--radius R] [--corner near|far]
 //       one small noisy puff (radius R, default N/16), or two at opposite corners of an
-//       N^3 box: time must follow the active voxels, not the box
+//       N^3 box: time must follow the active voxels, not the box. With --count 1,
+//       --corner far writes the pair's second puff alone (default near: its first)
 //   lpm_make_volume cloud OUT.vdb [--res N]
 //       a dense cumulus-like cloud filling most of an N^3 box (about 0.25 N^3 active voxels:
 //       N = 256: 4.2M, N = 585: 50M, N = 1024: 268M)
@@ -88,9 +89,9 @@ float cloudDensity(int x, int y, int z, int n, std::uint64_t seed) {
 }
 
 int usage() {
-    std::fprintf(
-        stderr,
-        "usage: lpm_make_volume plume|puffs|cloud OUT.vdb [--res N] [--count 1|2] [--radius R] [--seed S] [--box B]\n");
+    std::fprintf(stderr,
+                 "usage: lpm_make_volume plume|puffs|cloud OUT.vdb [--res N] [--count 1|2] [--radius R] [--corner "
+                 "near|far] [--seed S] [--box B]\n");
     return 2;
 }
 
@@ -100,7 +101,8 @@ int main(int argc, char** argv) {
     if (argc < 3) return usage();
     const std::string kind = argv[1], out = argv[2];
     int n = kind == "plume" ? 112 : (kind == "puffs" ? 512 : 256), count = 2, boxSide = 0;
-    float puffRadius = 0;  // 0: N / 16
+    float puffRadius = 0;         // 0: N / 16
+    std::string corner = "near";  // which of the pair's puffs --count 1 writes
     std::uint64_t seed = 7;
     for (int i = 3; i + 1 < argc; i += 2) {
         const std::string k = argv[i];
@@ -109,10 +111,12 @@ int main(int argc, char** argv) {
         else if (k == "--seed") seed = std::strtoull(argv[i + 1], nullptr, 10);
         else if (k == "--box") boxSide = std::atoi(argv[i + 1]);
         else if (k == "--radius") puffRadius = float(std::atof(argv[i + 1]));
+        else if (k == "--corner") corner = argv[i + 1];
         else return usage();
     }
     if (n < 8 || n > 4096 || count < 1 || count > 2 || boxSide < 0 || boxSide > 8192) return usage();
     if (!(puffRadius >= 0) || puffRadius * 4 > n) return usage();  // two puffs must fit apart
+    if (corner != "near" && corner != "far") return usage();
     openvdb::initialize();
     auto grid = openvdb::FloatGrid::create(0.0f);
     grid->setName("density");
@@ -128,7 +132,8 @@ int main(int argc, char** argv) {
     } else if (kind == "puffs") {
         const float radius = puffRadius > 0 ? puffRadius : n / 16.0f, lo = radius * 1.5f, hi = n - radius * 1.5f;
         const float centres[2][3] = {{lo, lo, lo}, {hi, hi, hi}};
-        for (int p = 0; p < count; ++p) {
+        const int first = count == 1 && corner == "far" ? 1 : 0;
+        for (int p = first; p < first + count; ++p) {
             const float* c = centres[p];
             const int r = int(std::ceil(radius * 1.4f));
             for (int z = int(c[2]) - r; z <= int(c[2]) + r; ++z)
