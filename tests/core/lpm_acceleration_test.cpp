@@ -66,3 +66,27 @@ TEST(KrylovAcceleration, AgreesWithPlainIteration) {
                 a.passes.size(), a.seconds, b.passes.size(), b.seconds, worst);
     EXPECT_LT(worst, 2e-3);
 }
+
+TEST(KrylovAcceleration, StopsAtTheSolvesOwnTolerance) {
+    // GMRES on the fine grid stops on the solve's stop test (LpmSolve::gmresTarget): what
+    // it leaves, grown by the passes that would still propagate it (at most 1 / (1 - c)),
+    // is below tol * input. At albedo 0.9 the default tolerance's answer is then within
+    // the tolerance's reach of one converged 1000x further, and its residual is below it.
+    Medium m = makeVolume(VolumeKind::Plume, 12, 1.0);
+    scaleToMaxOpticalDepth(m, 40.0);
+    m.albedo = RGB(0.9f);
+    const EnvMap sky = makeSky(32);
+    Lights lights;
+    lights.env = &sky;
+    LpmSettings loose, tight;
+    tight.tolerance = loose.tolerance * 1e-3;
+    const LpmResult a = solveLpm(m, lights, loose), b = solveLpm(m, lights, tight);
+    ASSERT_TRUE(a.converged);
+    ASSERT_TRUE(b.converged);
+    ASSERT_TRUE(saidDecision(a, "GMRES:")) << "the case should run GMRES";
+    const double apart = band0RelativeRms(m, a, b);
+    std::printf("[ krylov ] tol %g: %zu passes, residual %.3g; tol %g: %zu passes; band 0 apart %.2e\n",
+                loose.tolerance, a.passes.size(), a.residual, tight.tolerance, b.passes.size(), apart);
+    EXPECT_LE(a.residual, loose.tolerance);
+    EXPECT_LT(apart, loose.tolerance);
+}
