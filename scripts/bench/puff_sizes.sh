@@ -11,8 +11,9 @@
 #   scripts/bench/puff_sizes.sh [--reps N] [--threads N] [--radii "8 16 32 64"]
 # Prints a markdown table: per radius, the active voxels, passes, and the minimum and
 # median over the repetitions of the solve, the bake's total and the whole process (start
-# to exit), for the near puff, the far puff and the pair, with the ratios of the minima. The sky is read once
-# before the runs so every timed bake takes it from the decoded-image cache (docs/image_cache.md).
+# to exit), for the near puff, the far puff and the pair, with the ratios of the minima.
+# The sky is read once before the runs so every timed bake takes it from the decoded-image
+# cache (docs/image_cache.md).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 reps=3; threads=0; radii="8 16 32 64"
