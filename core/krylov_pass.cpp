@@ -97,6 +97,25 @@ double LpmSolve::gmresTarget(double bNorm, bool coarse) const {
     return std::max(relativeToB, s_.tolerance * res_.input * (1.0 - c) / last) * bNorm;
 }
 
+// A one-grid solve whose passes decay geometrically (extrapolateTail): the sources still to
+// come, next (1 + rho + rho^2 + ...), are swept as one source X = next / (1 - rho), which
+// deposits their S. What X misses is measured as GMRES's is: |B + K X - X| with B = next
+// = X (1 - rho), i.e. |K X - rho X|, the pass's reported scattered power.
+void LpmSolve::finishWithGeometricTail() {
+    const auto tp = Clock::now();
+    const float f = tailFactor_;
+    std::swap(unshot_, next_);
+    parallelForChunks(unshot_.size(), 1 << 16, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) unshot_[i] *= f;
+    });
+    assignZeroed(next_, perVoxel_ * S_);
+    Tally t;
+    propagate(unshot_, t, depositSh_, next_);
+    recordPass(pass_, t, tp);
+    res_.passes.back().scattered = unaccounted([&](size_t i) { return unshot_[i] / f; }, next_, unshot_);
+    extrapolatedError_ = -1;  // the measured residual is reported
+}
+
 // Remaining sum X = sum_{j >= 1} U_{k+j} solves (I - K) X = B, B = `next`, where K is one
 // propagation pass (source -> next unshot), in the inner product <a, b> = sum_d w_d a.b.
 void LpmSolve::finishWithGmres() {

@@ -36,7 +36,8 @@ struct LpmSettings {
                                                         ///< coarse grid 64 B per fine stored voxel)
     bool coarseTailExtrapolation = true;  ///< the two-grid coarse solve stops early where its passes decay
                                           ///< geometrically and adds the rest as that series
-                                          ///< (docs/multires.md, "Geometric tail")
+                                          ///< (docs/multires.md, "Geometric tail"); so does a
+                                          ///< solve on one grid, within a tenth of the tolerance
     int linearSource = -1;                ///< -1 auto (on when a voxel is optically thicker than
                                           ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
                                           ///< inside each voxel (linear characteristics; 4x the unshot memory)

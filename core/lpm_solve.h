@@ -63,6 +63,7 @@ private:
                           const HalfBuffer* takeFromNext = nullptr);
     // The GMRES continuation (core/krylov_pass.cpp).
     void finishWithGmres();
+    void finishWithGeometricTail();
     HalfOperator basisOperator();
     double gmresTarget(double bNorm, bool coarse) const;  ///< the residual norm GMRES stops at
     void startFromSourceSum(std::vector<float>& B, HalfBuffer& halfB, std::vector<float>& X,
@@ -116,7 +117,8 @@ private:
     float tailFactor_ = 1.0f;        ///< next's weight in the source sum: 1, or 1/(1 - rho) when extrapolated
     double extrapolatedError_ = -1;  ///< the extrapolation's estimated error (power), when it stopped the solve
     bool continuedOnCoarse_ = false;
-    bool depositSh_ = true;  ///< false in a coarse continuation (only its source sum is used)
+    bool finishWithTail_ = false;  ///< a one-grid solve's geometric tail: one last pass of next / (1 - rho)
+    bool depositSh_ = true;        ///< false in a coarse continuation (only its source sum is used)
 };
 
 }  // namespace lpm
