@@ -12,7 +12,8 @@
 // (GMRES when plain iteration would need more than 8 more passes), previous (the default
 // before raysHigherOrders and the coarse grid's earlier GMRES), full-sources (the two-grid
 // solve's fine sources held in full, bins per voxel, not separably), full-tail (the coarse
-// solve iterated to its tolerance, no geometric tail).
+// solve iterated to its tolerance, no geometric tail), constant / linear (the source inside
+// a voxel, instead of the planner's choice).
 #include <sys/resource.h>
 
 #include <cstdio>
@@ -57,6 +58,8 @@ LpmSettings settingsNamed(const std::string& name) {
     else if (name == "previous") s.raysHigherOrders = 2, s.coarseKrylovAfter = 25;  // session 6's default
     else if (name == "full-sources") s.separableSource = 0;
     else if (name == "full-tail") s.coarseTailExtrapolation = false;
+    else if (name == "constant") s.linearSource = 0;  // the voxel-constant (step) source everywhere
+    else if (name == "linear") s.linearSource = 1;
     else if (name != "default") {
         std::fprintf(stderr, "unknown setting '%s'\n", name.c_str());
         std::exit(2);

@@ -12,6 +12,21 @@
 using namespace lpm;
 using namespace lpm::test;
 
+// A 12^3 plume of the given peak optical depth and albedo, under a generated sky (the
+// lights point at the sky: not copied).
+struct SkyPlume {
+    Medium m = makeVolume(VolumeKind::Plume, 12, 1.0);
+    EnvMap sky = makeSky(32);
+    Lights lights;
+    SkyPlume(double opticalDepth, RGB albedo) {
+        scaleToMaxOpticalDepth(m, opticalDepth);
+        m.albedo = albedo;
+        lights.env = &sky;
+    }
+    SkyPlume(const SkyPlume&) = delete;
+    SkyPlume& operator=(const SkyPlume&) = delete;
+};
+
 class KrylovFurnace : public ::testing::TestWithParam<double> {};
 
 TEST_P(KrylovFurnace, WithinOnePercent) {
@@ -39,13 +54,10 @@ INSTANTIATE_TEST_SUITE_P(Tau, KrylovFurnace, ::testing::Values(50.0, 500.0));
 
 TEST(KrylovAcceleration, AgreesWithPlainIteration) {
     // Same answer as (long) plain source iteration on a moderately thick case.
-    Medium m = makeVolume(VolumeKind::Plume, 12, 1.0);
-    scaleToMaxOpticalDepth(m, 20.0);
-    m.albedo = RGB(0.98f, 0.95f, 0.9f);
+    SkyPlume scene(20.0, RGB(0.98f, 0.95f, 0.9f));
+    Medium& m = scene.m;
     m.g = 0.4;
-    const EnvMap sky = makeSky(32);
-    Lights lights;
-    lights.env = &sky;
+    Lights& lights = scene.lights;
     lights.suns.push_back({normalize(Vec3{0.2, 1, -0.4}), RGB(4.0f), 0.5});
     LpmSettings plain;
     plain.krylov = false;
@@ -72,12 +84,9 @@ TEST(KrylovAcceleration, StopsAtTheSolvesOwnTolerance) {
     // it leaves, grown by the passes that would still propagate it (at most 1 / (1 - c)),
     // is below tol * input. At albedo 0.9 the default tolerance's answer is then within
     // the tolerance's reach of one converged 1000x further, and its residual is below it.
-    Medium m = makeVolume(VolumeKind::Plume, 12, 1.0);
-    scaleToMaxOpticalDepth(m, 40.0);
-    m.albedo = RGB(0.9f);
-    const EnvMap sky = makeSky(32);
-    Lights lights;
-    lights.env = &sky;
+    const SkyPlume scene(40.0, RGB(0.9f));
+    const Medium& m = scene.m;
+    const Lights& lights = scene.lights;
     LpmSettings loose, tight;
     tight.tolerance = loose.tolerance * 1e-3;
     const LpmResult a = solveLpm(m, lights, loose), b = solveLpm(m, lights, tight);
@@ -96,12 +105,9 @@ TEST(GeometricTail, OneGridSolveEndsWithTheSeriesWithinTheTolerance) {
     // GMRES's 0.8) ends with one pass of next / (1 - rho) (LpmSolve::finishWithGeometricTail)
     // instead of iterating to the stop test: fewer passes, the energy still balanced, and
     // band 0 closer to a solve converged 1000x further than plain iteration to the end is.
-    Medium m = makeVolume(VolumeKind::Plume, 12, 1.0);
-    scaleToMaxOpticalDepth(m, 20.0);
-    m.albedo = RGB(0.8f);
-    const EnvMap sky = makeSky(32);
-    Lights lights;
-    lights.env = &sky;
+    const SkyPlume scene(20.0, RGB(0.8f));
+    const Medium& m = scene.m;
+    const Lights& lights = scene.lights;
     LpmSettings tail, plain, tight;
     plain.coarseTailExtrapolation = false;
     tight.tolerance = tail.tolerance * 1e-3;
