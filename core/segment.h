@@ -34,9 +34,14 @@ inline void phiFunctions(double tau, double f[5]) {
                                      1.0 / 87178291200.0,
                                      1.0 / 1307674368000.0,
                                      1.0 / 20922789888000.0};
-        double acc = c[12];
-        for (int j = 11; j >= 0; --j) acc = c[j] - tau * acc;
-        f[4] = acc;
+        // Estrin's scheme in x = -tau: the same polynomial as Horner's rule with a chain of
+        // 4 multiply-adds after the powers instead of 12 (the linear source's sweep waited
+        // on that chain, docs/performance.md, "Session 41").
+        const double x = -tau, x2 = x * x, x4 = x2 * x2, x8 = x4 * x4;
+        const double a0 = c[0] + c[1] * x, a1 = c[2] + c[3] * x, a2 = c[4] + c[5] * x;
+        const double a3 = c[6] + c[7] * x, a4 = c[8] + c[9] * x, a5 = c[10] + c[11] * x;
+        const double b0 = a0 + a1 * x2, b1 = a2 + a3 * x2, b2 = a4 + a5 * x2;
+        f[4] = (b0 + b1 * x4) + (b2 + c[12] * x4) * x8;
         f[3] = 1.0 / 6 - tau * f[4];
         f[2] = 0.5 - tau * f[3];
         f[1] = 1.0 - tau * f[2];

@@ -185,8 +185,10 @@ private:
     // (unwrapped index cell), so a ray that reaches a face exactly at the slice's end (or
     // past it by rounding) crosses it, re-entering at a lateral face, in the next slice's
     // DDA, never by the wrap alone; then wrapped into [0, n).
+    // (The clamp written out, so nextafter runs only when p reaches the next cell.)
     static double nextPosition(double p, int cell, int n) {
-        p = std::clamp(p, double(cell), std::nextafter(double(cell + 1), double(cell)));
+        if (p < double(cell)) p = double(cell);
+        else if (p >= double(cell + 1)) p = std::nextafter(double(cell + 1), double(cell));
         const double wrapped = p - std::floor(p / n) * n;
         return wrapped < n ? wrapped : std::nextafter(double(n), 0.0);
     }
@@ -237,8 +239,8 @@ private:
         xi0[a_] = job_.sign > 0 ? lam - 0.5 : 0.5 - lam;
         dxi[a_] = job_.sign > 0 ? lamN - lam : lam - lamN;
         double xu = p + lam * du_ - (cu + 0.5), xv = q + lam * dv_ - (cv + 0.5);
-        xu -= nu_ * std::round(xu / nu_);  // the ray may have wrapped at a lateral face
-        xv -= nv_ * std::round(xv / nv_);
+        unwrap(xu, nu_);  // the ray may have wrapped at a lateral face
+        unwrap(xv, nv_);
         xi0[u_] = xu - lu_.centroid;
         xi0[v_] = xv - lv_.centroid;
         dxi[u_] = (lamN - lam) * du_;
@@ -270,6 +272,13 @@ private:
             abs_[c] += s * (1 - alb_[c]) * M0;
             inj_[c] += len * (qa + 0.5 * qb);
         }
+    }
+
+    // x -= n round(x / n): the offset from a voxel centre of a ray that wrapped at a
+    // lateral face; round (a library call) only when it is not 0.
+    static void unwrap(double& x, int n) {
+        const double q = x / n;
+        if (std::fabs(q) >= 0.5) x -= n * std::round(q);
     }
 
     // The rays still in the block escape. Boundary and escape terms were summed as
