@@ -116,10 +116,17 @@ void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan&
     const double tau = scene.maxVoxelTau;
     plan.linearSource = s.linearSource == 1 || (s.linearSource < 0 && tau > s.linearSourceAbove);
     const char* shape = plan.linearSource ? "linear source inside voxels" : "voxel-constant source inside voxels";
+    // The linear source's sweep is the scalar reference kernel (docs/performance.md,
+    // "Session 41"): the fine plan names its price and the way around it.
+    const char* price = plan.linearSource && !scene.continuation
+                            ? "; it takes 30-50x the constant source's time (--source constant: faster, less "
+                              "accurate in the thick voxels)"
+                            : "";
     if (s.linearSource < 0)
         plan.decisions.push_back({shape, format(plan.linearSource ? "largest voxel optical depth %.3g > %.3g"
                                                                   : "largest voxel optical depth %.3g <= %.3g",
-                                                tau, s.linearSourceAbove)});
+                                                tau, s.linearSourceAbove) +
+                                             price});
     else plan.decisions.push_back({std::string(shape) + " (requested)", ""});
     const double leakAbove = plan.linearSource ? s.linearSourceVoxelCap : 2.0;
     if (tau > leakAbove)
