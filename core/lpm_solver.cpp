@@ -75,7 +75,7 @@ void sweepSunTerms(const Medium& m, const std::vector<Sun>& suns, size_t explici
         unit.boundary = RGB(1.0f);
         std::vector<float> phi(m.voxelCount() * 3 * moments, 0.0f);
         Tally ignored;
-        if (moments == 4) sweepReference<true>(m, unit, raysPerVoxel, phi.data(), ignored);
+        if (moments == 4) sweepStepLinear(m, unit, raysPerVoxel, phi.data(), ignored);
         else sweepStep(m, unit, raysPerVoxel, phi.data(), ignored);
         SunTerm t;
         t.toSun = normalize(suns[i].toSun);

@@ -204,7 +204,7 @@ void PassRunner::sweepBatchesInto(const std::vector<Job>& jobs, const std::vecto
         std::vector<Tally> tallies(nbatch);
         // Jobs that sweep the same planes go as groups (sweepStepGroup), each job's deposits
         // and tally bit-identical to its own sweep, so any grouping gives the same sums. The
-        // linear source's reference kernel sweeps one job at a time.
+        // linear source's kernel (sweepStepLinear) sweeps one job at a time.
         std::vector<std::pair<size_t, size_t>> groups;
         if (M == 4)
             for (size_t j = 0; j < nbatch; ++j) groups.push_back({j, j + 1});
@@ -214,7 +214,7 @@ void PassRunner::sweepBatchesInto(const std::vector<Job>& jobs, const std::vecto
                 const auto [j0, j1] = groups[g];
                 if constexpr (std::is_same_v<T, float>)
                     if (M == 4) {
-                        sweepReference<true>(m_, jobs[b0 + j0], r, zeroedBuffer(j0, N * 3 * M).data(), tallies[j0]);
+                        sweepStepLinear(m_, jobs[b0 + j0], r, zeroedBuffer(j0, N * 3 * M).data(), tallies[j0]);
                         continue;
                     }
                 std::vector<const Job*> group;

@@ -32,6 +32,9 @@
 
 #include "core/sweep.h"
 
+#include "core/exp_neg.h"
+#include "core/lattice_moments.h"
+#include "core/linear_segment_lanes.h"
 #include "core/malloc_policy.h"
 #include "core/scratch_pool.h"
 #include "core/simd_clones.h"
@@ -39,30 +42,6 @@
 namespace lpm {
 
 namespace {
-
-// exp(-x), x >= 0: Cody-Waite reduction x = n ln2 - r, |r| <= ln2/2, Cephes' degree-6
-// polynomial, 2^n by exponent bits. Above 87 (where e^-x is denormal) exactly 0.
-inline float expNegInline(float x) {
-    const float xc = x < 87.0f ? x : 87.0f;  // selects, not std::min: keeps the loop branch-free
-    const float y = -xc;
-    // Round to nearest by adding 1.5 * 2^23 (no libm call, vectorises without SSE4.1).
-    const float n = (y * 1.44269504088896341f + 12582912.0f) - 12582912.0f;
-    float r = y - n * 0.693359375f;
-    r = r + n * 2.12194440e-4f;
-    float p = 1.9875691500e-4f;
-    p = p * r + 1.3981999507e-3f;
-    p = p * r + 8.3334519073e-3f;
-    p = p * r + 4.1665795894e-2f;
-    p = p * r + 1.6666665459e-1f;
-    p = p * r + 5.0000001201e-1f;
-    p = p * r * r + r + 1.0f;
-    const std::int32_t e = std::int32_t(n) + 127;  // >= 1 for x <= 87
-    const std::int32_t bits = e << 23;
-    float scale;
-    std::memcpy(&scale, &bits, sizeof scale);
-    const float value = p * scale;  // computed unconditionally: a select, not a branch, under -ftrapping-math
-    return x < 87.0f ? value : 0.0f;
-}
 
 // Layout of a plane chunk: the 8 voxels of one tile along one voxel row, as 8 arrays of 8
 // floats (sigma, source q0..q2, deposit d0..d2, 1/sigma or 0 where sigma = 0): 64 floats
@@ -176,6 +155,35 @@ LPM_SIMD_CLONES void segmentChunks(int chunks, float len, float dk, float* __res
     }
 }
 
+// The formulas of the phi functions a linear-source chunk needs (core/linear_segment_lanes.h).
+inline PhiRange chunkPhiRange(const float* sigRange, float len) {
+    if (sigRange[1] * len < 1.0f) return PhiRange::Series;
+    return sigRange[0] * len >= 1.0f ? PhiRange::Recurrence : PhiRange::Mixed;
+}
+
+// segmentChunks for the linear source: one segment event g of a lattice class for
+// `chunks` x 8 rays over as many chunks of the linear planes (LinearChunk).
+LPM_SIMD_CLONES void segmentChunksLinear(int chunks, const LinearSegmentGeometry& g, float* __restrict plane,
+                                         const float* __restrict sigRange, float* __restrict L, size_t nuPad) {
+    float* __restrict L0 = L;
+    float* __restrict L1 = L + nuPad;
+    float* __restrict L2 = L + 2 * nuPad;
+    for (int k = 0; k < chunks;
+         ++k, plane += LinearChunk::kFloats, sigRange += 2, L0 += kLanes, L1 += kLanes, L2 += kLanes) {
+        switch (chunkPhiRange(sigRange, g.len)) {
+            case PhiRange::Series:
+                linearSegmentLanes<PhiRange::Series>(g, plane, L0, L1, L2);
+                break;
+            case PhiRange::Recurrence:
+                linearSegmentLanes<PhiRange::Recurrence>(g, plane, L0, L1, L2);
+                break;
+            case PhiRange::Mixed:
+                linearSegmentLanes<PhiRange::Mixed>(g, plane, L0, L1, L2);
+                break;
+        }
+    }
+}
+
 inline int wrap(long long x, int n) {
     const long long m = x % n;
     return int(m < 0 ? m + n : m);
@@ -251,8 +259,9 @@ inline bool unitCrossing(ClassState& st, double d, double step, double& lam) {
 }
 
 struct Event {
-    double len;  // segment length (0 for a crossing)
-    int kind;    // 0 segment, 1 u crossing, 2 v crossing
+    double len;                 // segment length (0 for a crossing)
+    int kind;                   // 0 segment, 1 u crossing, 2 v crossing
+    double lam0 = 0, lam1 = 0;  // a segment's start and end, fractions of the slice
 };
 
 // Merges a class's u and v crossings into its ordered events (u first on ties, as the
@@ -265,7 +274,7 @@ void mergeEvents(const std::vector<double>& lu, const std::vector<double>& lv, d
     for (;;) {
         const double nu = i < lu.size() ? lu[i] : 2.0, nv = j < lv.size() ? lv[j] : 2.0;
         const double next = std::min(std::min(nu, nv), 1.0);
-        if (next > lam) ev.push_back({(next - lam) * sliceLen, 0});
+        if (next > lam) ev.push_back({(next - lam) * sliceLen, 0, lam, next});
         lam = std::max(lam, next);
         if (next >= 1.0) break;
         if (nu <= nv) {
@@ -384,12 +393,14 @@ struct PlaneRow {
 
 // Plane offset of the sigma of (row cv, slice s of the layer, column cu); cu must lie in
 // the row's span. All three are >= 0: unsigned division by the tile size is a shift.
+// Chunk: floats of a plane chunk (kChunk, or LinearChunk::kFloats for the linear source).
+template <int Chunk = kChunk>
 inline size_t planeIndex(const PlaneRow* rows, int cv, int s, int cu) {
     constexpr unsigned K = Medium::kTile;
     const unsigned v = unsigned(cv), u = unsigned(cu);
     const PlaneRow& pr = rows[v / K];
     return pr.base +
-           (size_t((v % K) * K + unsigned(s)) * unsigned(pr.width) + size_t(u / K - unsigned(pr.first))) * kChunk +
+           (size_t((v % K) * K + unsigned(s)) * unsigned(pr.width) + size_t(u / K - unsigned(pr.first))) * Chunk +
            size_t(u % K);
 }
 
@@ -402,10 +413,11 @@ struct GatherSource {
     const std::uint8_t* wanted;
     size_t stride;
     float scale[3];
+    bool slopes;  // src holds the linear source's slopes after the mean (Job::srcLinear)
     GatherSource(const Medium& m, const Job& job)
         : sigma(m.sigmaT.data()), src(job.src), srcBf16(job.srcBf16),
           wanted(m.wantedS.empty() ? nullptr : m.wantedS.data()),
-          stride(job.srcStride), scale{job.srcScale.r, job.srcScale.g, job.srcScale.b} {}
+          stride(job.srcStride), scale{job.srcScale.r, job.srcScale.g, job.srcScale.b}, slopes(job.srcLinear) {}
 };
 
 // One chunk (the nU voxels of a tile row segment from storage index x0, stride sU) into
@@ -437,6 +449,35 @@ inline bool gatherChunk(const GatherSource& g, bool empty, size_t x0, size_t sU,
     return wanted || range[1] > 0;
 }
 
+// gatherChunk for the linear source's chunk (LinearChunk): sigma, q0 and the slopes (each
+// times sigma and the job's scale; 0 without a source or slopes), deposits zeroed, 1/sigma.
+inline bool gatherChunkLinear(const GatherSource& g, bool empty, size_t x0, size_t sU, int nU, float* q, float* range) {
+    constexpr int n = LinearChunk::kLanes;
+    std::fill_n(q, LinearChunk::kFloats, 0.0f);
+    range[0] = range[1] = 0.0f;
+    if (empty) return false;
+    bool wanted = !g.wanted;
+    for (int lu = 0; lu < nU; ++lu) {
+        const size_t x = x0 + size_t(lu) * sU;
+        if (g.wanted) wanted = wanted || g.wanted[x];
+        const float sg = g.sigma[x];
+        q[LinearChunk::kSigma * n + lu] = sg;
+        if (!g.src) continue;
+        const float* sp = g.src + x * g.stride;
+        for (int c = 0; c < 3; ++c) {
+            const float k0 = sg * g.scale[c];
+            q[(LinearChunk::kQ0 + c) * n + lu] = k0 * sp[c];
+            if (g.slopes)
+                for (int ax = 0; ax < 3; ++ax)
+                    q[(LinearChunk::kSlope + 3 * ax + c) * n + lu] = k0 * sp[3 * (ax + 1) + c];
+        }
+    }
+    for (int i = 0; i < n; ++i) q[LinearChunk::kInvSigma * n + i] = q[i] > 0 ? 1.0f / q[i] : 0.0f;
+    range[0] = *std::min_element(q, q + n);
+    range[1] = *std::max_element(q, q + n);
+    return wanted || range[1] > 0;
+}
+
 // The columns a sweep crosses in each (voxel row, slice) of a tile layer: from the first
 // live chunk to the last (tile-aligned start; the end clipped to the block), lo = hi when
 // none is live. Index: voxel row cv times the tile size plus the slice within the layer.
@@ -448,11 +489,12 @@ struct LiveSpans {
 // Tiles first..last of tile row tv into the planes (and each chunk's sigma range into R,
 // 2 floats a chunk), in plane order (voxel row, slice, tile), so the writes stream through
 // consecutive chunks; the tiles' reads (a few KB each) stay in cache across the row. Sets
-// the live spans of the row's (voxel row, slice) pairs.
+// the live spans of the row's (voxel row, slice) pairs. linear: the planes hold the linear
+// source's chunks (LinearChunk).
 LPM_SIMD_CLONES
 void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* rows, float* P, float* R, int layer,
                    int tv, int first, int last, std::vector<AxisFrame::TileWalk>& walks,
-                   std::vector<std::uint8_t>& empty, LiveSpans spans) {
+                   std::vector<std::uint8_t>& empty, LiveSpans spans, bool linear) {
     constexpr int K = Medium::kTile;
     const int n = last - first + 1;
     walks.resize(size_t(n));
@@ -465,14 +507,19 @@ void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* ro
     const int nV = walks[0].nV, nA = walks[0].nA;  // the same for every tile of the row
     for (int lv = 0; lv < nV; ++lv)
         for (int s = 0; s < nA; ++s) {
-            const size_t at = planeIndex(rows, tv * K + lv, s, first * K);
+            const size_t chunkFloats = linear ? size_t(LinearChunk::kFloats) : size_t(kChunk);
+            const size_t at = linear ? planeIndex<LinearChunk::kFloats>(rows, tv * K + lv, s, first * K)
+                                     : planeIndex(rows, tv * K + lv, s, first * K);
             int liveFirst = -1, liveLast = -1;
             for (int i = 0; i < n; ++i) {
                 const AxisFrame::TileWalk& w = walks[size_t(i)];
-                const size_t chunk = at / kChunk + size_t(i);
-                if (gatherChunk(g, empty[size_t(i)], w.base + size_t(s) * w.sA + size_t(lv) * w.sV, w.sU, w.nU,
-                                &P[chunk * kChunk], &R[2 * chunk]))
-                {
+                const size_t chunk = at / chunkFloats + size_t(i);
+                const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
+                const bool live =
+                    linear
+                        ? gatherChunkLinear(g, empty[size_t(i)], x0, w.sU, w.nU, &P[chunk * chunkFloats], &R[2 * chunk])
+                        : gatherChunk(g, empty[size_t(i)], x0, w.sU, w.nU, &P[chunk * chunkFloats], &R[2 * chunk]);
+                if (live) {
                     if (liveFirst < 0) liveFirst = i;
                     liveLast = i;
                 }
@@ -527,6 +574,34 @@ void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, 
     }
 }
 
+// scatterTile for the linear source's chunks (LinearChunk): phi [stored voxel][mean, x, y,
+// z][rgb] += k * the deposits; sums sigma d_mean (sca) and q0 (src).
+void scatterTileLinear(const AxisFrame& f, const PlaneRow* rows, const float* P, int layer, int tu, int tv, float k,
+                       float* phi, double sca[3], double src[3]) {
+    constexpr int K = Medium::kTile, n = LinearChunk::kLanes;
+    const std::int32_t slot = f.tileSlot(layer, tu, tv);
+    if (slot == -2) return;
+    const AxisFrame::TileWalk w = f.tileWalk(slot, layer, tu, tv);
+    float ts[3] = {0, 0, 0}, tq[3] = {0, 0, 0};
+    for (int s = 0; s < w.nA; ++s)
+        for (int lv = 0; lv < w.nV; ++lv) {
+            const float* q = &P[planeIndex<LinearChunk::kFloats>(rows, tv * K + lv, s, tu * K)];
+            const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
+            for (int lu = 0; lu < w.nU; ++lu) {
+                float* ph = &phi[(x0 + size_t(lu) * w.sU) * 12];
+                for (int j = 0; j < 12; ++j) ph[j] += k * q[(LinearChunk::kDeposit + j) * n + lu];
+                for (int c = 0; c < 3; ++c) {
+                    ts[c] += q[LinearChunk::kSigma * n + lu] * q[(LinearChunk::kDeposit + c) * n + lu];
+                    tq[c] += q[(LinearChunk::kQ0 + c) * n + lu];
+                }
+            }
+        }
+    for (int c = 0; c < 3; ++c) {
+        sca[c] += ts[c];
+        src[c] += tq[c];
+    }
+}
+
 // The planes of one tile layer for a sweep axis: per tile row tv the chunks of the tiles
 // between the first and the last allocated one over all layers (so a sparse volume in a
 // large box costs no plane memory for its empty space), filled one layer at a time with
@@ -537,7 +612,9 @@ class LayerPlanes {
 public:
     static constexpr int K = Medium::kTile;
 
-    LayerPlanes(const Medium& m, int axis) : f_(m, axis), ext_(f_) {
+    // linear: chunks of the linear source (LinearChunk), scattered by scatterLinear.
+    LayerPlanes(const Medium& m, int axis, bool linear = false)
+        : f_(m, axis), ext_(f_), linear_(linear), chunk_(linear ? LinearChunk::kFloats : kChunk) {
         rows_.assign(size_t(f_.tnv), PlaneRow{});
         size_t total = 0;
         for (int tv = 0; tv < f_.tnv; ++tv) {
@@ -553,10 +630,10 @@ public:
             pr.first = last < 0 ? 0 : first;
             pr.width = last < 0 ? 0 : last - first + 1;
             pr.base = total;
-            total += size_t(pr.width) * K * K * kChunk;
+            total += size_t(pr.width) * K * K * size_t(chunk_);
         }
         assignZeroed(P_, total);
-        assignZeroed(range_, 2 * (total / kChunk));
+        assignZeroed(range_, 2 * (total / size_t(chunk_)));
         spanLo_.assign(size_t(f_.nv) * K, 0);
         spanHi_.assign(size_t(f_.nv) * K, 0);
     }
@@ -579,7 +656,7 @@ public:
             const int cv0 = tv * K, cv1 = std::min(f_.nv, (tv + 1) * K);
             spanRows_.push_back(tv);
             gatherTileRow(f_, GatherSource(f_.m, srcJob), rows_.data(), P_.data(), range_.data(), layer, tv, first,
-                          last, walks_, empty_, LiveSpans{spanLo_.data(), spanHi_.data()});
+                          last, walks_, empty_, LiveSpans{spanLo_.data(), spanHi_.data()}, linear_);
             for (int cv = cv0; cv < cv1; ++cv)
                 for (int s = 0; s < K; ++s)
                     if (spanLo_[size_t(cv) * K + s] < spanHi_[size_t(cv) * K + s]) occupied_[s].push_back(cv);
@@ -601,6 +678,16 @@ public:
         }
     }
 
+    // The linear source's phi [stored voxel][mean, x, y, z][rgb] += k * the layer's deposits.
+    void scatterLinear(int layer, float k, float* phi, double sca[3], double src[3]) {
+        for (int tv = 0; tv < f_.tnv; ++tv) {
+            int first, last;
+            ext_.rowExtent(layer, tv, first, last);
+            for (int tu = std::max(first, 0); tu <= last; ++tu)
+                scatterTileLinear(f_, rows_.data(), P_.data(), layer, tu, tv, k, phi, sca, src);
+        }
+    }
+
     const PlaneRow* rows() const { return rows_.data(); }
     float* data() { return P_.data(); }
     /// Per chunk of data(): its smallest and largest sigma.
@@ -615,6 +702,8 @@ public:
 private:
     AxisFrame f_;
     TileRowExtents ext_;
+    bool linear_ = false;                       // the linear source's chunks
+    int chunk_ = kChunk;                        // floats of a chunk
     std::vector<PlaneRow> rows_;                // per tile row, over all layers
     std::vector<float> P_;                      // the current tile layer
     std::vector<float> range_;                  // per chunk of P_: smallest and largest sigma
@@ -648,9 +737,10 @@ public:
     // weight A_perp w, and scattered by the batch); null: the sweep's own. ownDeposits:
     // shared planes (a group's) whose deposits this sweep scatters itself (scatterOwn),
     // exactly as with planes of its own.
+    // linear: the linear source's sweep (own planes of LinearChunk; phi holds 4 moments).
     StepSweep(const Medium& m, const Job& job, int r, float depositScale, LayerPlanes* shared = nullptr,
-              bool ownDeposits = false)
-        : m_(m), job_(job), g_(m, job, r), f_(m, job.axis), depositScale_(depositScale) {
+              bool ownDeposits = false, bool linear = false)
+        : m_(m), job_(job), g_(m, job, r), f_(m, job.axis), depositScale_(depositScale), linear_(linear) {
         rows_count_ = size_t(r) * r * g_.nv;
         // A ray row gets storage only when it first meets allocated voxels (pristine_), so
         // the rays of empty space cost neither memory traffic nor pages.
@@ -686,7 +776,7 @@ public:
         // Every ray of the lattice starts holding the boundary radiance (padding lanes excluded).
         bndIn_ = std::uint64_t(r) * std::uint64_t(r) * std::uint64_t(g_.nu) * std::uint64_t(g_.nv);
         dk_ = shared && !ownDeposits ? float(g_.aPerp * job.weight) : 1.0f;
-        if (!shared) own_ = std::make_unique<LayerPlanes>(m, job.axis);
+        if (!shared) own_ = std::make_unique<LayerPlanes>(m, job.axis, linear);
         planes_ = shared ? shared : own_.get();
         stU_.resize(size_t(r));
         stV_.resize(size_t(r));
@@ -714,7 +804,8 @@ public:
             const int layer = layerAt(l);
             const bool any = planes_->gather(layer, job_);
             sweepLayer(layer, any);
-            if (any) planes_->scatter(layer, k, phi, sca_, injSrc_);
+            if (any && linear_) planes_->scatterLinear(layer, k, phi, sca_, injSrc_);
+            else if (any) planes_->scatter(layer, k, phi, sca_, injSrc_);
         }
         finish(tally);
     }
@@ -794,6 +885,8 @@ private:
         }
         crossEmptyRun();
         for (int j = 0; j < r; ++j) {
+            fU0_[j] = stU_[j].f;
+            fV0_[j] = stV_[j].f;
             SV_[j] = wrap(stV_[j].S, g_.nv);
             crossings(stU_[j], g_.du, stepU_, lamU_[j]);
             crossings(stV_[j], g_.dv, stepV_, lamV_[j]);
@@ -802,6 +895,7 @@ private:
         for (int jv = 0; jv < r; ++jv)
             for (int ju = 0; ju < r; ++ju) mergeEvents(lamU_[ju], lamV_[jv], g_.sliceLen, ev_[size_t(jv * r + ju)]);
         const int rr = r * r;
+        if (linear_) linearGeometry(job_.sign > 0 ? ia : g_.na - 1 - ia);
         for (int cls = 0; cls < rr; ++cls) {
             uCount_[cls] = 0;
             for (const Event& e : ev_[size_t(cls)]) uCount_[cls] += e.kind == 1;
@@ -858,7 +952,7 @@ private:
     void sweepCandidate(size_t row, int cellV, int cls) {
         touch(row);
         syncPending(row, cls, 0);
-        processRow(row, cellV, SV_[cls / g_.r], ev_[size_t(cls)], true);
+        processRow(row, cellV, SV_[cls / g_.r], ev_[size_t(cls)], true, linear_ ? geo_[size_t(cls)].data() : nullptr);
         seenU_[row] = classU_[cls] + uCount_[cls];
     }
 
@@ -1205,12 +1299,15 @@ private:
     }
 
     // Applies one class's events in slice order to one ray row; SV: the class's row shift
-    // at slice start, in [0, nv).
-    void processRow(size_t row, int cellV, int SV, const std::vector<Event>& ev, bool any) {
+    // at slice start, in [0, nv). geo: the linear source's segment geometry per event
+    // (linearGeometry), null for a voxel-constant source.
+    void processRow(size_t row, int cellV, int SV, const std::vector<Event>& ev, bool any,
+                    const LinearSegmentGeometry* geo) {
         const int nv = g_.nv;
         int vr = cellV + SV;  // the voxel row the rays are in
         if (vr >= nv) vr -= nv;
-        for (const Event& e : ev) {
+        for (size_t i = 0; i < ev.size(); ++i) {
+            const Event& e = ev[i];
             if (e.kind == 1) {
                 ++pending_[row];
                 continue;
@@ -1230,13 +1327,61 @@ private:
             // lo is tile-aligned; hi rounds up into the padding columns (sigma = 0 there).
             const int chunks = (hi - lo + K - 1) / K;
             prepareColumns(row, lo, lo + chunks * K);
+            segs_ += std::uint64_t(hi - lo);
+            if (geo) {
+                const size_t first = planeIndex<LinearChunk::kFloats>(planes_->rows(), vr, slice_, lo);
+                const float* range = &planes_->sigRanges()[2 * (first / LinearChunk::kFloats)];
+                segmentChunksLinear(chunks, geo[i], &planes_->data()[first], range, at(row, 0, lo), size_t(cap_[row]));
+                continue;
+            }
             const size_t first = planeIndex(planes_->rows(), vr, slice_, lo);  // lo tile-aligned: a whole chunk
             float* plane = &planes_->data()[first];
             const float* range = &planes_->sigRanges()[2 * (first / kChunk)];
             if (job_.hasSource())
                 segmentChunks<true>(chunks, float(e.len), dk_, plane, range, at(row, 0, lo), size_t(cap_[row]));
             else segmentChunks<false>(chunks, float(e.len), dk_, plane, range, at(row, 0, lo), size_t(cap_[row]));
-            segs_ += std::uint64_t(hi - lo);
+        }
+    }
+
+    // The linear source's segment geometry of every class's events in slice t (in sweep
+    // order), as the reference kernel computes it per ray (core/sweep_reference.cpp): the
+    // start in the voxel relative to the lattice's centroid, the change along the segment,
+    // and the deposit factors with the lattice-moment scales (core/lattice_moments.h). A
+    // class's position in its voxel is its fraction at slice start plus lambda d, less the
+    // faces it crossed so far.
+    void linearGeometry(int t) {
+        const int r = g_.r, a = g_.a, u = g_.u, v = g_.v;
+        const LatticeMoments lu(job_.offsetU, g_.du, r, t), lv(job_.offsetV, g_.dv, r, t);
+        double scale[3];
+        scale[a] = 1, scale[u] = lu.scale, scale[v] = lv.scale;
+        for (int cls = 0; cls < r * r; ++cls) {
+            const std::vector<Event>& ev = ev_[size_t(cls)];
+            std::vector<LinearSegmentGeometry>& geo = geo_[size_t(cls)];
+            geo.resize(ev.size());
+            int crossedU = 0, crossedV = 0;
+            for (size_t i = 0; i < ev.size(); ++i) {
+                const Event& e = ev[i];
+                crossedU += e.kind == 1;
+                crossedV += e.kind == 2;
+                if (e.kind != 0) continue;
+                const double lam = e.lam0, dl = e.lam1 - e.lam0;
+                double xi0[3], dxi[3];
+                xi0[a] = job_.sign > 0 ? lam - 0.5 : 0.5 - lam;
+                dxi[a] = job_.sign > 0 ? dl : -dl;
+                xi0[u] = fU0_[cls % r] + lam * g_.du - g_.su * crossedU - 0.5 - lu.centroid;
+                xi0[v] = fV0_[cls / r] + lam * g_.dv - g_.sv * crossedV - 0.5 - lv.centroid;
+                dxi[u] = dl * g_.du;
+                dxi[v] = dl * g_.dv;
+                LinearSegmentGeometry& G = geo[i];
+                G.len = float(e.len);
+                G.invLen = float(1.0 / e.len);
+                for (int k = 0; k < 3; ++k) {
+                    G.xi0[k] = float(xi0[k]);
+                    G.dxi[k] = float(dxi[k]);
+                    G.a[k] = float(scale[k] * xi0[k]);
+                    G.b[k] = float(scale[k] * dxi[k]);
+                }
+            }
         }
     }
 
@@ -1245,6 +1390,7 @@ private:
     const Geometry g_;
     const AxisFrame f_;
     const float depositScale_;
+    const bool linear_;                 // the linear source's sweep (sweepStepLinear)
     std::unique_ptr<LayerPlanes> own_;  // own planes, when not shared
     LayerPlanes* planes_ = nullptr;     // the planes swept through (own or a batch's)
     float dk_ = 1.0f;                   // deposit factor in the kernel
@@ -1281,7 +1427,9 @@ private:
     int emptyRun_ = 0;                         // unit steps: empty slices not yet crossed (crossEmptyRun)
     std::vector<double> lamU_[16], lamV_[16];  // this slice's crossings per class (r <= 16)
     int SV_[16] = {};
+    double fU0_[16] = {}, fV0_[16] = {};  // per class index: its fraction in the voxel at slice start
     std::vector<Event> ev_[256];
+    std::vector<LinearSegmentGeometry> geo_[256];  // linear source: per class, per event (linearGeometry)
     float bnd_[3];
     double esc_[3] = {0, 0, 0}, sca_[3] = {0, 0, 0}, injSrc_[3] = {0, 0, 0};
     // Rays entering, and rays leaving while they hold the boundary radiance (a pristine
@@ -1298,6 +1446,12 @@ void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally,
     if (r < 1 || r > 16) throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(r));
     if (job.srcLinear) throw Error("LPM", "sweepStep takes a voxel-constant source only");
     StepSweep(m, job, r, depositScale).run(phi, tally);
+}
+
+void sweepStepLinear(const Medium& m, const Job& job, int r, float* phi, Tally& tally) {
+    if (r < 1 || r > 16) throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(r));
+    if (job.srcBf16) throw Error("LPM", "sweepStepLinear reads a float source, not a bfloat16 one");
+    StepSweep(m, job, r, 1.0f, nullptr, false, true).run(phi, tally);
 }
 
 bool samePlanes(const Job& a, const Job& b) {

@@ -2,10 +2,10 @@
 // (Fattal 2009, sec. 4), depositing each voxel's track-length integral of the radiance.
 // docs/lpm_solver.md has the equations; docs/performance.md the fast kernel's design.
 //
-// Two kernels compute the same thing:
+// Two kernels compute the same thing (and sweepStepLinear, sweepStep's for the linear source):
 //   sweepReference: one ray at a time with a double-precision DDA, any source shape
-//                   (voxel-constant or linear); the definition the fast kernel is tested
-//                   against, and the kernel of the linear source.
+//                   (voxel-constant or linear); the definition the fast kernels are
+//                   tested against.
 //   sweepStep:      voxel-constant source only. Rays of one lattice class share their
 //                   geometry in a slice, so a slice is a few runs of contiguous rays over a
 //                   dense plane of the slice's voxels: float32, vectorised (runtime
@@ -72,6 +72,14 @@ void sweepReference(const Medium& m, const Job& job, int r, float* phi, Tally& t
 /// at the voxels with extinction or wanted; the skipped dead chunks get nothing); the tally
 /// is identical in meaning (it does not include depositScale).
 void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally, float depositScale = 1.0f);
+
+/// Fast kernel for the linear source (docs/performance.md, "The linear source's fast
+/// kernel"): sweepStep's geometry and planes with chunks of the linear source
+/// (core/linear_segment_lanes.h); phi [stored voxel][mean, x, y, z][rgb] += Phi, as
+/// sweepReference<true> adds, agreeing with it to float rounding (with Medium::wantedS
+/// set, at the voxels with extinction or wanted). A job without slopes (srcLinear false)
+/// sweeps a voxel-constant source and still deposits the 4 moments.
+void sweepStepLinear(const Medium& m, const Job& job, int r, float* phi, Tally& tally);
 
 /// The sweeps of `jobs`, all with one sweep axis and one voxel-constant source (src,
 /// srcStride, srcScale): the jobs of each sign advance together layer by layer, each tile
