@@ -129,7 +129,6 @@ std::vector<std::vector<T>>& PassRunner::buffersOf() const {
     else return bf16Buffers_;
 }
 
-std::vector<float>& PassRunner::zeroedBuffer(size_t i, size_t len) const { return assignZeroed(buffers_[i], len); }
 
 template <class T>
 std::vector<T>& PassRunner::depositBuffer(size_t i, size_t len) const {
@@ -160,10 +159,11 @@ bool PassRunner::isotropic(const std::vector<Job>& jobs) const {
     return true;
 }
 
-std::vector<std::pair<size_t, size_t>> sweepGroups(const Job* jobs, size_t n, int threads) {
+std::vector<std::pair<size_t, size_t>> sweepGroups(const Job* jobs, size_t n, int threads, bool linear) {
     std::vector<std::pair<size_t, size_t>> groups;  // [begin, end)
+    const auto same = linear ? sameLinearPlanes : samePlanes;
     for (size_t j = 0; j < n; ++j)
-        if (groups.empty() || !samePlanes(jobs[j], jobs[groups.back().first]) ||
+        if (groups.empty() || !same(jobs[j], jobs[groups.back().first]) ||
             jobs[j].sign != jobs[groups.back().first].sign)
             groups.push_back({j, j + 1});
         else groups.back().second = j + 1;
@@ -203,28 +203,22 @@ void PassRunner::sweepBatchesInto(const std::vector<Job>& jobs, const std::vecto
         if (before) before(b);
         std::vector<Tally> tallies(nbatch);
         // Jobs that sweep the same planes go as groups (sweepStepGroup), each job's deposits
-        // and tally bit-identical to its own sweep, so any grouping gives the same sums. The
-        // linear source's kernel (sweepStepLinear) sweeps one job at a time.
-        std::vector<std::pair<size_t, size_t>> groups;
-        if (M == 4)
-            for (size_t j = 0; j < nbatch; ++j) groups.push_back({j, j + 1});
-        else groups = sweepGroups(&jobs[b0], nbatch, maxThreads());
+        // and tally bit-identical to its own sweep, so any grouping gives the same sums (the
+        // linear source's: sweepStepLinearGroup).
+        const std::vector<std::pair<size_t, size_t>> groups = sweepGroups(&jobs[b0], nbatch, maxThreads(), M == 4);
         parallelForChunks(groups.size(), 1, [&](size_t gb, size_t ge) {
             for (size_t g = gb; g < ge; ++g) {
                 const auto [j0, j1] = groups[g];
-                if constexpr (std::is_same_v<T, float>)
-                    if (M == 4) {
-                        sweepStepLinear(m_, jobs[b0 + j0], r, zeroedBuffer(j0, N * 3 * M).data(), tallies[j0]);
-                        continue;
-                    }
                 std::vector<const Job*> group;
                 std::vector<T*> phi;
                 for (size_t j = j0; j < j1; ++j) {
                     group.push_back(&jobs[b0 + j]);
-                    phi.push_back(depositBuffer<T>(j, N * 3).data());
+                    phi.push_back(depositBuffer<T>(j, N * 3 * size_t(M)).data());
                 }
                 std::vector<Tally> groupTallies(group.size());
-                sweepStepGroup(m_, group, r, phi, groupTallies);
+                if constexpr (std::is_same_v<T, float>)
+                    if (M == 4) sweepStepLinearGroup(m_, group, r, phi, groupTallies);
+                if (M == 1) sweepStepGroup(m_, group, r, phi, groupTallies);
                 std::copy(groupTallies.begin(), groupTallies.end(), tallies.begin() + std::ptrdiff_t(j0));
             }
         });

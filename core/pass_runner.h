@@ -74,7 +74,6 @@ private:
     /// Deposit buffer i (a batch's accumulator or a direction's deposit), `len` zeros. The
     /// buffers are kept from pass to pass: allocated and freed every pass, their pages
     /// were faulted in again each time (a fifth of a bake's time, docs/performance.md).
-    std::vector<float>& zeroedBuffer(size_t i, size_t len) const;
     /// Deposit buffer i of `len` floats for a sweep that overwrites every stored voxel of
     /// the block (sweepStepGroup, sweepStepBatch): zeroed only when it is (re)allocated, so
     /// the padding of edge tiles, which no sweep writes, stays 0 while the rest is left
@@ -103,8 +102,9 @@ private:
 /// A batch's jobs jobs[0..n) as sweep groups [begin, end) (sweepStepGroup): runs of
 /// consecutive jobs that sweep the same planes with one sign, the largest split in halves
 /// until there are `threads` groups or none has two jobs. The sums do not depend on the
-/// grouping (each job's deposits are those of its own sweep).
-std::vector<std::pair<size_t, size_t>> sweepGroups(const Job* jobs, size_t n, int threads);
+/// grouping (each job's deposits are those of its own sweep). linear: the linear source's
+/// groups (sameLinearPlanes, sweepStepLinearGroup).
+std::vector<std::pair<size_t, size_t>> sweepGroups(const Job* jobs, size_t n, int threads, bool linear = false);
 
 /// The jobs grouped into sweep batches (sweepStepBatch): per sweep axis and source (in order
 /// of first appearance), the jobs of sign +1 then those of -1, cut into `split` contiguous

@@ -575,9 +575,11 @@ void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, 
 }
 
 // scatterTile for the linear source's chunks (LinearChunk): phi [stored voxel][mean, x, y,
-// z][rgb] += k * the deposits; sums sigma d_mean (sca) and q0 (src).
-void scatterTileLinear(const AxisFrame& f, const PlaneRow* rows, const float* P, int layer, int tu, int tv, float k,
-                       float* phi, double sca[3], double src[3]) {
+// z][rgb] += k * the deposits (or = when Assign); sums sigma d_mean (sca) and q0 (src).
+// clear: the deposits read are zeroed (a group's planes).
+template <bool Assign>
+void scatterTileLinear(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, int tu, int tv, float k,
+                       float* phi, double sca[3], double src[3], bool clear) {
     constexpr int K = Medium::kTile, n = LinearChunk::kLanes;
     const std::int32_t slot = f.tileSlot(layer, tu, tv);
     if (slot == -2) return;
@@ -585,16 +587,21 @@ void scatterTileLinear(const AxisFrame& f, const PlaneRow* rows, const float* P,
     float ts[3] = {0, 0, 0}, tq[3] = {0, 0, 0};
     for (int s = 0; s < w.nA; ++s)
         for (int lv = 0; lv < w.nV; ++lv) {
-            const float* q = &P[planeIndex<LinearChunk::kFloats>(rows, tv * K + lv, s, tu * K)];
+            float* q = &P[planeIndex<LinearChunk::kFloats>(rows, tv * K + lv, s, tu * K)];
             const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
             for (int lu = 0; lu < w.nU; ++lu) {
                 float* ph = &phi[(x0 + size_t(lu) * w.sU) * 12];
-                for (int j = 0; j < 12; ++j) ph[j] += k * q[(LinearChunk::kDeposit + j) * n + lu];
+                for (int j = 0; j < 12; ++j) {
+                    const float d = k * q[(LinearChunk::kDeposit + j) * n + lu];
+                    if constexpr (Assign) ph[j] = d;
+                    else ph[j] += d;
+                }
                 for (int c = 0; c < 3; ++c) {
                     ts[c] += q[LinearChunk::kSigma * n + lu] * q[(LinearChunk::kDeposit + c) * n + lu];
                     tq[c] += q[(LinearChunk::kQ0 + c) * n + lu];
                 }
             }
+            if (clear) std::fill_n(&q[LinearChunk::kDeposit * n], 12 * n, 0.0f);
         }
     for (int c = 0; c < 3; ++c) {
         sca[c] += ts[c];
@@ -678,13 +685,15 @@ public:
         }
     }
 
-    // The linear source's phi [stored voxel][mean, x, y, z][rgb] += k * the layer's deposits.
-    void scatterLinear(int layer, float k, float* phi, double sca[3], double src[3]) {
+    // The linear source's phi [stored voxel][mean, x, y, z][rgb] += k * the layer's
+    // deposits (= when Assign); clear as scatter's.
+    template <bool Assign = false>
+    void scatterLinear(int layer, float k, float* phi, double sca[3], double src[3], bool clear = false) {
         for (int tv = 0; tv < f_.tnv; ++tv) {
             int first, last;
             ext_.rowExtent(layer, tv, first, last);
             for (int tu = std::max(first, 0); tu <= last; ++tu)
-                scatterTileLinear(f_, rows_.data(), P_.data(), layer, tu, tv, k, phi, sca, src);
+                scatterTileLinear<Assign>(f_, rows_.data(), P_.data(), layer, tu, tv, k, phi, sca, src, clear);
         }
     }
 
@@ -814,6 +823,8 @@ public:
     // which are zeroed for the next sweep of the group.
     template <class Out>
     void scatterOwn(int layer, Out* phi) {
+        if constexpr (std::is_same_v<Out, float>)
+            if (linear_) return planes_->scatterLinear<true>(layer, float(g_.aPerp) * depositScale_, phi, sca_, injSrc_, true);
         planes_->scatter<true>(layer, float(g_.aPerp) * depositScale_, phi, sca_, injSrc_, true);
     }
 
@@ -1460,6 +1471,12 @@ bool samePlanes(const Job& a, const Job& b) {
            a.srcScale.b == b.srcScale.b;
 }
 
+bool sameLinearPlanes(const Job& a, const Job& b) {
+    return a.srcLinear == b.srcLinear && a.axis == b.axis && a.src == b.src && a.srcBf16 == b.srcBf16 &&
+           a.srcStride == b.srcStride && a.srcScale.r == b.srcScale.r && a.srcScale.g == b.srcScale.g &&
+           a.srcScale.b == b.srcScale.b;
+}
+
 namespace {
 
 // Tile layers along a sweep axis.
@@ -1485,22 +1502,25 @@ std::unique_ptr<ScratchBlock> attachArenas(const std::vector<std::unique_ptr<Ste
 
 namespace {
 
+// linear: the linear source's sweeps (sweepStepLinearGroup).
 template <class Out>
 void sweepGroupInto(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<Out*>& phi,
-                    std::vector<Tally>& tallies) {
+                    std::vector<Tally>& tallies, bool linear = false) {
     if (r < 1 || r > 16) throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(r));
     if (jobs.empty()) return;
     const Job& first = *jobs[0];
     for (const Job* j : jobs)
-        if (!samePlanes(*j, first) || j->sign != first.sign)
-            throw Error("LPM", "a sweep group takes jobs of one sweep axis, one sign and one voxel-constant source");
+        if (linear ? !sameLinearPlanes(*j, first) || j->sign != first.sign || j->srcBf16
+                   : !samePlanes(*j, first) || j->sign != first.sign)
+            throw Error("LPM", linear ? "a linear-source sweep group takes jobs of one sweep axis, one sign and one float source"
+                                      : "a sweep group takes jobs of one sweep axis, one sign and one voxel-constant source");
     if (phi.size() != jobs.size() || tallies.size() != jobs.size())
         throw Error("LPM", "a sweep group needs one deposit buffer and one tally per job");
     // Every sweep reads the layer's planes, gathered once; each adds its deposits there and
     // scatters (and zeroes) them before the next sweeps the layer: the arithmetic of sweepStep.
-    LayerPlanes planes(m, first.axis);
+    LayerPlanes planes(m, first.axis, linear);
     std::vector<std::unique_ptr<StepSweep>> sweeps;
-    for (const Job* j : jobs) sweeps.push_back(std::make_unique<StepSweep>(m, *j, r, 1.0f, &planes, true));
+    for (const Job* j : jobs) sweeps.push_back(std::make_unique<StepSweep>(m, *j, r, 1.0f, &planes, true, linear));
     const std::unique_ptr<ScratchBlock> arena = attachArenas(sweeps);
     const int layers = tileLayers(m, first.axis);
     for (int l = 0; l < layers; ++l) {
@@ -1524,6 +1544,11 @@ void sweepStepGroup(const Medium& m, const std::vector<const Job*>& jobs, int r,
 void sweepStepGroup(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<Bf16*>& phi,
                     std::vector<Tally>& tallies) {
     sweepGroupInto(m, jobs, r, phi, tallies);
+}
+
+void sweepStepLinearGroup(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<float*>& phi,
+                          std::vector<Tally>& tallies) {
+    sweepGroupInto(m, jobs, r, phi, tallies, true);
 }
 
 void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,

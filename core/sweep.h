@@ -81,6 +81,17 @@ void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally,
 /// sweeps a voxel-constant source and still deposits the 4 moments.
 void sweepStepLinear(const Medium& m, const Job& job, int r, float* phi, Tally& tally);
 
+/// Whether two jobs of the linear source's kernel sweep the same planes (one sweep axis,
+/// one float source with or without slopes: src, srcStride, srcScale, srcLinear).
+bool sameLinearPlanes(const Job& a, const Job& b);
+
+/// sweepStepGroup for the linear source's kernel: jobs of one sweep axis, one sign and
+/// one float source (sameLinearPlanes), each layer's planes gathered once for all of
+/// them; phi[j] [stored voxel][mean, x, y, z][rgb] and tallies[j] receive exactly what
+/// sweepStepLinear of jobs[j] adds to zeros (bit for bit), assigned as sweepStepGroup's.
+void sweepStepLinearGroup(const Medium& m, const std::vector<const Job*>& jobs, int r, const std::vector<float*>& phi,
+                          std::vector<Tally>& tallies);
+
 /// The sweeps of `jobs`, all with one sweep axis and one voxel-constant source (src,
 /// srcStride, srcScale): the jobs of each sign advance together layer by layer, each tile
 /// layer's planes (medium, source) gathered once for all of them and their deposits

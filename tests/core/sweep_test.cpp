@@ -688,3 +688,62 @@ TEST(SweepKernelLinear, SparseBlobsMatchReference) {
     const std::vector<Vec3> dirs = {{1, 0.95, 0.9}, {-1, -0.9, -0.97}, {0.2, -0.6, 1}, {-0.7, 0.8, -1}};
     EXPECT_EQ(expectLinearMatchesReference(m, dirs, {1, 2}, randomLinearSource(m.voxelCount(), 23), 0.23, 0.13), 24);
 }
+
+// A linear-source group gathers each layer once for its jobs: each job's deposits and
+// tally are those of its own sweepStepLinear, bit for bit, assigned over a buffer's stale
+// values in the block (the padding keeps them); jobs of another source are refused.
+TEST(SweepKernelLinear, GroupEqualsOwnSweepsBitForBit) {
+    const Vec3 dirs[3] = {{0.3, -0.2, 1}, {0.1, 0.5, 0.9}, {-0.7, 0.6, 0.8}};
+    int cases = 0;
+    for (int layout = 0; layout < 3; ++layout) {
+        const Medium m = randomMedium(21, 18, 26, {1, 0.8, 1.2}, layout > 0, 41 + layout, layout == 2);
+        const std::vector<char> inBlock = blockVoxels(m);
+        const size_t N = m.voxelCount();
+        const std::vector<float> src = randomLinearSource(N, 31 + layout);
+        constexpr float kStale = 7.0f;
+        for (int kind : {0, 1, 2})  // no source, linear, constant
+            for (int r : {1, 2}) {
+                std::vector<Job> jobs;
+                for (int i = 0; i < 3; ++i) {
+                    jobs.push_back(makeJob(dirs[i], nullptr, 0.17 + 0.23 * i));
+                    if (kind > 0) {
+                        jobs.back().src = src.data();
+                        jobs.back().srcStride = 12;
+                        jobs.back().srcLinear = kind == 1;
+                    }
+                }
+                std::vector<std::vector<float>> own(3, std::vector<float>(N * 12, 0.0f));
+                std::vector<std::vector<float>> grouped(3, std::vector<float>(N * 12, kStale));
+                std::vector<Tally> ownT(3), groupT(3);
+                std::vector<const Job*> ptrs;
+                std::vector<float*> phi;
+                for (size_t i = 0; i < 3; ++i) {
+                    sweepStepLinear(m, jobs[i], r, own[i].data(), ownT[i]);
+                    ptrs.push_back(&jobs[i]);
+                    phi.push_back(grouped[i].data());
+                }
+                sweepStepLinearGroup(m, ptrs, r, phi, groupT);
+                for (size_t i = 0; i < 3; ++i) {
+                    std::vector<float> want = own[i];
+                    for (size_t v = 0; v < N; ++v)
+                        if (!inBlock[v]) std::fill_n(&want[v * 12], 12, kStale);
+                    EXPECT_EQ(want, grouped[i]) << "layout " << layout << " source " << kind << " r " << r;
+                    for (int c = 0; c < 3; ++c) {
+                        EXPECT_EQ(ownT[i].injected[c], groupT[i].injected[c]);
+                        EXPECT_EQ(ownT[i].escaped[c], groupT[i].escaped[c]);
+                        EXPECT_EQ(ownT[i].scattered[c], groupT[i].scattered[c]);
+                    }
+                }
+                ++cases;
+            }
+    }
+    EXPECT_EQ(cases, 18);
+    const Medium m = randomMedium(9, 9, 9, {1, 1, 1}, false, 3);
+    const std::vector<float> src = randomLinearSource(m.voxelCount(), 3);
+    Job a = makeJob({0.2, 0.1, 1}, nullptr, 0.3), b = a;
+    b.src = src.data();
+    b.srcStride = 12;
+    std::vector<float> pa(m.voxelCount() * 12), pb(pa);
+    std::vector<Tally> t(2);
+    EXPECT_THROW(sweepStepLinearGroup(m, {&a, &b}, 1, {pa.data(), pb.data()}, t), Error);
+}
