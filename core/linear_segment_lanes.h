@@ -8,7 +8,7 @@
 // Q(t) = qa + qb t / l, qa = q0 + sum_k s_k xi0_k, qb = sum_k s_k dxi_k (q0, s_k: the
 // voxel's mean and slopes times sigma and the job's scale; xi0, dxi: where the segment
 // starts in the voxel and how far it moves, the same for every ray of a lattice class).
-// Deposits: d0 += M0, d_k += a_k M0 + b_k M1 (a_k = scale_k xi0_k, b_k = scale_k dxi_k,
+// Deposits: d0 += M0, d_k += a_k M0 + b_k M1 (times a batch's weight, dk) (a_k = scale_k xi0_k, b_k = scale_k dxi_k,
 // the lattice-moment scales of core/lattice_moments.h).
 #pragma once
 
@@ -73,11 +73,13 @@ inline void phiLanes(float tau, float rtau, float f[5]) {
     }
 }
 
-/// One chunk: 8 rays (L0..L2, one per channel) over the chunk's 8 voxels (plane).
+/// One chunk: 8 rays (L0..L2, one per channel) over the chunk's 8 voxels (plane); the
+/// deposits are added times dk (1 for a sweep of its own planes; the job's tally weight
+/// when a batch shares them).
 template <PhiRange R>
-inline __attribute__((always_inline)) void linearSegmentLanes(const LinearSegmentGeometry& g, float* __restrict plane,
-                                                              float* __restrict L0, float* __restrict L1,
-                                                              float* __restrict L2) {
+inline __attribute__((always_inline)) void linearSegmentLanes(const LinearSegmentGeometry& g, float dk,
+                                                              float* __restrict plane, float* __restrict L0,
+                                                              float* __restrict L1, float* __restrict L2) {
     constexpr int n = LinearChunk::kLanes;
     const float len = g.len;
     float* __restrict Ls[3] = {L0, L1, L2};
@@ -96,9 +98,10 @@ inline __attribute__((always_inline)) void linearSegmentLanes(const LinearSegmen
             const float M0 = len * (Lin * f[1] + len * (qa * f[2] + qb * f[3]));
             const float M1 = len * (Lin * g12 + len * (qa * g23 + qb * g34));
             Ls[c][i] = Lin * f[0] + len * (qa * f[1] + qb * f[2]);
+            const float m0 = dk * M0, m1 = dk * M1;
             float* __restrict d = plane + LinearChunk::kDeposit * n + i;
-            d[c * n] += M0;
-            for (int k = 0; k < 3; ++k) d[(3 + 3 * k + c) * n] += g.a[k] * M0 + g.b[k] * M1;
+            d[c * n] += m0;
+            for (int k = 0; k < 3; ++k) d[(3 + 3 * k + c) * n] += g.a[k] * m0 + g.b[k] * m1;
         }
     }
 }

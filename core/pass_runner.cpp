@@ -129,7 +129,6 @@ std::vector<std::vector<T>>& PassRunner::buffersOf() const {
     else return bf16Buffers_;
 }
 
-
 template <class T>
 std::vector<T>& PassRunner::depositBuffer(size_t i, size_t len) const {
     std::vector<T>& b = buffersOf<T>()[i];
@@ -144,13 +143,14 @@ void PassRunner::reserveBuffers(size_t count, size_t len) const {
 }
 
 void PassRunner::run(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const {
-    if (isotropic(jobs)) runIsotropic(jobs, r, total, depositSh, out);
+    if (isotropic(jobs) && shape_.moments == 4) runIsotropicLinear(jobs, r, total, depositSh, out);
+    else if (isotropic(jobs)) runIsotropic(jobs, r, total, depositSh, out);
     else runGeneral(jobs, r, total, depositSh, out);
 }
 
 // Every job of the isotropic fold must share the SH-per-bin and bin-per-weight ratios.
 bool PassRunner::isotropic(const std::vector<Job>& jobs) const {
-    if (!(shape_.moments == 1 && shape_.bins == 1 && shape_.coeffs == 1)) return false;
+    if (!((shape_.moments == 1 || shape_.moments == 4) && shape_.bins == 1 && shape_.coeffs == 1)) return false;
     if (jobs.empty()) return true;
     const double ratio = jobs[0].shCoef[0] / jobs[0].binCoef[0], perWeight = jobs[0].binCoef[0] / jobs[0].weight;
     auto near = [](double a, double b) { return std::fabs(a - b) <= 1e-9 * std::fabs(b); };
@@ -284,6 +284,48 @@ void PassRunner::runIsotropic(const std::vector<Job>& jobs, int r, Tally& total,
             if (depositSh) sh_[i] += float(shPerBin * sum);
         }
     });
+}
+
+// runIsotropic for the linear source: each batch's 4 moments accumulate in its planes
+// (sweepStepLinearBatch); the batches fold into the next source in batch order, each
+// added on its own (out += a_g, then the next), so the sums are the same whether the
+// batches are swept all at once or, as here, a round of as many as there are threads at
+// a time: 48 B a voxel per buffer, threads buffers instead of one per batch (6 on a
+// scene with sources, 12 on the light pass). The fold is foldDeposits' for one bin: the
+// mean as it is, the slopes from the first moments times 12 (Int xi_k^2 = 1/12) in the
+// voxels that keep slopes, band 0 from the mean.
+void PassRunner::runIsotropicLinear(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh,
+                                    std::vector<float>& out) const {
+    constexpr int kBatchSplit = 2;
+    const size_t N = m_.voxelCount();
+    const double shPerBin = jobs.empty() ? 0.0 : jobs[0].shCoef[0] / jobs[0].binCoef[0];
+    const float perWeight = jobs.empty() ? 0.0f : float(jobs[0].binCoef[0] / jobs[0].weight);
+    const std::vector<std::vector<const Job*>> batches = sweepBatches(jobs, kBatchSplit);
+    const size_t round = size_t(std::max(1, maxThreads()));
+    reserveBuffers(std::min(round, batches.size()), N * 12);
+    for (size_t g0 = 0; g0 < batches.size(); g0 += round) {
+        const size_t n = std::min(round, batches.size() - g0);
+        std::vector<Tally> tallies(n);
+        parallelForChunks(n, 1, [&](size_t gb, size_t ge) {
+            for (size_t g = gb; g < ge; ++g)
+                sweepStepLinearBatch(m_, batches[g0 + g], r, depositBuffer(g, N * 12).data(), tallies[g], perWeight);
+        });
+        for (const Tally& t : tallies) total.add(t);
+        parallelForChunks(N, 1 << 12, [&](size_t b, size_t e) {
+            for (size_t v = b; v < e; ++v) {
+                const int moments = slopeVoxel_.empty() || slopeVoxel_[v] ? 4 : 1;
+                for (size_t g = 0; g < n; ++g) {
+                    const float* a = &buffers_[g][v * 12];
+                    for (int c = 0; c < 3; ++c) {
+                        out[v * 12 + size_t(c)] += a[c];
+                        if (depositSh) sh_[v * 3 + size_t(c)] += float(shPerBin * a[c]);
+                    }
+                    for (int k = 1; k < moments; ++k)
+                        for (int c = 0; c < 3; ++c) out[v * 12 + size_t(3 * k + c)] += 12.0f * a[3 * k + c];
+                }
+            }
+        });
+    }
 }
 
 }  // namespace lpm

@@ -71,11 +71,11 @@ private:
     /// The deposit buffers of element T (float or Bf16).
     template <class T>
     std::vector<std::vector<T>>& buffersOf() const;
-    /// Deposit buffer i (a batch's accumulator or a direction's deposit), `len` zeros. The
-    /// buffers are kept from pass to pass: allocated and freed every pass, their pages
-    /// were faulted in again each time (a fifth of a bake's time, docs/performance.md).
-    /// Deposit buffer i of `len` floats for a sweep that overwrites every stored voxel of
-    /// the block (sweepStepGroup, sweepStepBatch): zeroed only when it is (re)allocated, so
+    /// Deposit buffer i (a batch's accumulator or a direction's deposit) of `len` floats for
+    /// a sweep that overwrites every stored voxel of the block (sweepStepGroup,
+    /// sweepStepBatch and their linear-source twins). The buffers are kept from pass to
+    /// pass: allocated and freed every pass, their pages were faulted in again each time (a
+    /// fifth of a bake's time, docs/performance.md). Zeroed only when (re)allocated, so
     /// the padding of edge tiles, which no sweep writes, stays 0 while the rest is left
     /// from the last batch (zeroing it for every batch: about 3% of a g = 0.6 bake's CPU).
     template <class T = float>
@@ -88,6 +88,8 @@ private:
 
     void runGeneral(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const;
     void runIsotropic(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh, std::vector<float>& out) const;
+    void runIsotropicLinear(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh,
+                            std::vector<float>& out) const;
 
     const Medium& m_;
     FoldShape shape_;

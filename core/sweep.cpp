@@ -163,7 +163,7 @@ inline PhiRange chunkPhiRange(const float* sigRange, float len) {
 
 // segmentChunks for the linear source: one segment event g of a lattice class for
 // `chunks` x 8 rays over as many chunks of the linear planes (LinearChunk).
-LPM_SIMD_CLONES void segmentChunksLinear(int chunks, const LinearSegmentGeometry& g, float* __restrict plane,
+LPM_SIMD_CLONES void segmentChunksLinear(int chunks, const LinearSegmentGeometry& g, float dk, float* __restrict plane,
                                          const float* __restrict sigRange, float* __restrict L, size_t nuPad) {
     float* __restrict L0 = L;
     float* __restrict L1 = L + nuPad;
@@ -172,13 +172,13 @@ LPM_SIMD_CLONES void segmentChunksLinear(int chunks, const LinearSegmentGeometry
          ++k, plane += LinearChunk::kFloats, sigRange += 2, L0 += kLanes, L1 += kLanes, L2 += kLanes) {
         switch (chunkPhiRange(sigRange, g.len)) {
             case PhiRange::Series:
-                linearSegmentLanes<PhiRange::Series>(g, plane, L0, L1, L2);
+                linearSegmentLanes<PhiRange::Series>(g, dk, plane, L0, L1, L2);
                 break;
             case PhiRange::Recurrence:
-                linearSegmentLanes<PhiRange::Recurrence>(g, plane, L0, L1, L2);
+                linearSegmentLanes<PhiRange::Recurrence>(g, dk, plane, L0, L1, L2);
                 break;
             case PhiRange::Mixed:
-                linearSegmentLanes<PhiRange::Mixed>(g, plane, L0, L1, L2);
+                linearSegmentLanes<PhiRange::Mixed>(g, dk, plane, L0, L1, L2);
                 break;
         }
     }
@@ -824,7 +824,8 @@ public:
     template <class Out>
     void scatterOwn(int layer, Out* phi) {
         if constexpr (std::is_same_v<Out, float>)
-            if (linear_) return planes_->scatterLinear<true>(layer, float(g_.aPerp) * depositScale_, phi, sca_, injSrc_, true);
+            if (linear_)
+                return planes_->scatterLinear<true>(layer, float(g_.aPerp) * depositScale_, phi, sca_, injSrc_, true);
         planes_->scatter<true>(layer, float(g_.aPerp) * depositScale_, phi, sca_, injSrc_, true);
     }
 
@@ -1342,7 +1343,8 @@ private:
             if (geo) {
                 const size_t first = planeIndex<LinearChunk::kFloats>(planes_->rows(), vr, slice_, lo);
                 const float* range = &planes_->sigRanges()[2 * (first / LinearChunk::kFloats)];
-                segmentChunksLinear(chunks, geo[i], &planes_->data()[first], range, at(row, 0, lo), size_t(cap_[row]));
+                segmentChunksLinear(chunks, geo[i], dk_, &planes_->data()[first], range, at(row, 0, lo),
+                                    size_t(cap_[row]));
                 continue;
             }
             const size_t first = planeIndex(planes_->rows(), vr, slice_, lo);  // lo tile-aligned: a whole chunk
@@ -1512,8 +1514,10 @@ void sweepGroupInto(const Medium& m, const std::vector<const Job*>& jobs, int r,
     for (const Job* j : jobs)
         if (linear ? !sameLinearPlanes(*j, first) || j->sign != first.sign || j->srcBf16
                    : !samePlanes(*j, first) || j->sign != first.sign)
-            throw Error("LPM", linear ? "a linear-source sweep group takes jobs of one sweep axis, one sign and one float source"
-                                      : "a sweep group takes jobs of one sweep axis, one sign and one voxel-constant source");
+            throw Error("LPM",
+                        linear
+                            ? "a linear-source sweep group takes jobs of one sweep axis, one sign and one float source"
+                            : "a sweep group takes jobs of one sweep axis, one sign and one voxel-constant source");
     if (phi.size() != jobs.size() || tallies.size() != jobs.size())
         throw Error("LPM", "a sweep group needs one deposit buffer and one tally per job");
     // Every sweep reads the layer's planes, gathered once; each adds its deposits there and
@@ -1551,14 +1555,18 @@ void sweepStepLinearGroup(const Medium& m, const std::vector<const Job*>& jobs, 
     sweepGroupInto(m, jobs, r, phi, tallies, true);
 }
 
-void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
-                    float depositPerWeight) {
+namespace {
+
+// sweepStepBatch, or with linear its linear source's (sweepStepLinearBatch).
+void sweepBatchInto(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
+                    float depositPerWeight, bool linear) {
     if (r < 1 || r > 16) throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(r));
     if (jobs.empty()) return;
     const Job& first = *jobs[0];
     for (const Job* j : jobs)
-        if (!samePlanes(*j, first))
-            throw Error("LPM", "a sweep batch takes jobs of one sweep axis and one voxel-constant source");
+        if (linear ? !sameLinearPlanes(*j, first) || j->srcBf16 : !samePlanes(*j, first))
+            throw Error("LPM", linear ? "a linear-source sweep batch takes jobs of one sweep axis and one float source"
+                                      : "a sweep batch takes jobs of one sweep axis and one voxel-constant source");
     // The jobs of each sign cross the layers in the same order: they advance together,
     // layer by layer, through one set of planes gathered once per layer for all of them.
     const double V = m.voxelVolume();
@@ -1567,11 +1575,11 @@ void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r,
     for (int sign : {1, -1}) {
         if (std::none_of(jobs.begin(), jobs.end(), [&](const Job* j) { return j->sign == sign; })) continue;
         std::vector<std::unique_ptr<StepSweep>> sweeps;
-        LayerPlanes planes(m, first.axis);
+        LayerPlanes planes(m, first.axis, linear);
         double weights = 0;
         for (const Job* j : jobs)
             if (j->sign == sign) {
-                sweeps.push_back(std::make_unique<StepSweep>(m, *j, r, 1.0f, &planes));
+                sweeps.push_back(std::make_unique<StepSweep>(m, *j, r, 1.0f, &planes, false, linear));
                 weights += j->weight;
             }
         if (sweeps.empty()) continue;
@@ -1582,7 +1590,9 @@ void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r,
             const int layer = sweeps[0]->layerAt(l);
             const bool any = planes.gather(layer, first);
             for (auto& sw : sweeps) sw->sweepLayer(layer, any);
-            if (any && assign) planes.scatter<true>(layer, depositPerWeight, phi, sca, src);
+            if (any && linear && assign) planes.scatterLinear<true>(layer, depositPerWeight, phi, sca, src);
+            else if (any && linear) planes.scatterLinear(layer, depositPerWeight, phi, sca, src);
+            else if (any && assign) planes.scatter<true>(layer, depositPerWeight, phi, sca, src);
             else if (any) planes.scatter(layer, depositPerWeight, phi, sca, src);
         }
         assign = false;
@@ -1593,6 +1603,18 @@ void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r,
             tally.absorbed[c] += (1 - alb[c]) * sca[c];
         }
     }
+}
+
+}  // namespace
+
+void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
+                    float depositPerWeight) {
+    sweepBatchInto(m, jobs, r, phi, tally, depositPerWeight, false);
+}
+
+void sweepStepLinearBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
+                          float depositPerWeight) {
+    sweepBatchInto(m, jobs, r, phi, tally, depositPerWeight, true);
 }
 
 }  // namespace lpm

@@ -104,6 +104,13 @@ void sweepStepLinearGroup(const Medium& m, const std::vector<const Job*>& jobs, 
 void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
                     float depositPerWeight);
 
+/// sweepStepBatch for the linear source's kernel (jobs of one sweep axis and one float
+/// source, sameLinearPlanes): phi [stored voxel][mean, x, y, z][rgb] = depositPerWeight *
+/// sum_j weight_j Phi_j (sweepStepLinear's deposits; float rounding differs), assigned
+/// over the block's stored voxels; the tally sums the jobs'.
+void sweepStepLinearBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
+                          float depositPerWeight);
+
 /// Whether two jobs sweep the same planes (one sweep axis, one voxel-constant source:
 /// src, srcStride, srcScale), so a batch or a group can gather them once for both.
 bool samePlanes(const Job& a, const Job& b);

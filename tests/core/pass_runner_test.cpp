@@ -57,6 +57,57 @@ TEST(PassRunner, IsotropicFoldEqualsGeneralFold) {
         EXPECT_NEAR(iso.tally.scattered[c], general.tally.scattered[c], 1e-5 * general.tally.scattered[c]);
 }
 
+namespace {
+
+/// Two passes of the linear source (4 moments) under a uniform sky, folded into `coeffs`
+/// SH coefficients and one isotropic bin: pass 0 (boundary light), then the pass its
+/// folded source feeds (slopes and all); voxels with odd index keep no slopes.
+PassOutput runLinearPasses(const Medium& m, int coeffs) {
+    LpmCache cache;
+    const CubeQuadrature quad(4);
+    const auto ff = cache.formFactors(4, 0, 0.0);
+    const JobFactory factory(quad, *ff, m.localToWorld, m.voxelVolume(), coeffs, 0.0);
+    const std::vector<RGB> sky(quad.count(), RGB(1.0f, 0.8f, 0.5f));
+    const size_t N = m.voxelCount();
+    std::vector<std::uint8_t> slopes(N);
+    for (size_t v = 0; v < N; ++v) slopes[v] = v % 2 == 0;
+    PassOutput o;
+    o.sh.assign(N * coeffs * 3, 0.0f);
+    std::vector<float> first(N * 12, 0.0f);
+    const PassRunner runner(m, FoldShape{1, 4, coeffs}, slopes, o.sh);
+    const std::vector<Job> light = factory.lightJobs(m, sky, true, {});
+    EXPECT_EQ(runner.isotropic(light), coeffs == 1);
+    runner.run(light, 2, o.tally, true, first);
+    o.out.assign(N * 12, 0.0f);
+    runner.run(factory.sourceJobs(first, 4, m.albedo), 1, o.tally, true, o.out);
+    for (size_t i = 0; i < first.size(); ++i) o.out[i] += first[i];  // both passes compared
+    return o;
+}
+
+}  // namespace
+
+// The linear source's isotropic fold (batched sweeps into fixed accumulators, in rounds)
+// against its general fold (a deposit buffer per direction): the next source's means and
+// slopes, band 0 and the tallies.
+TEST(PassRunner, IsotropicLinearFoldEqualsGeneralFold) {
+    Medium m = makeVolume(VolumeKind::Cloud, 12, 3.0);
+    const PassOutput iso = runLinearPasses(m, 1), general = runLinearPasses(m, 4);
+    float peak = 0, slopePeak = 0;
+    for (size_t i = 0; i < general.out.size(); ++i)
+        (i % 12 < 3 ? peak : slopePeak) = std::max(i % 12 < 3 ? peak : slopePeak, std::fabs(general.out[i]));
+    ASSERT_GT(peak, 0);
+    ASSERT_GT(slopePeak, 0);
+    for (size_t v = 0; v < m.voxelCount(); ++v) {
+        for (int k = 0; k < 12; ++k) EXPECT_NEAR(iso.out[v * 12 + k], general.out[v * 12 + k], 1e-5 * peak) << v;
+        for (int k = 3; k < 12 && v % 2 == 1; ++k) EXPECT_EQ(iso.out[v * 12 + k], 0.0f) << v;  // no slopes kept
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(iso.sh[v * 3 + c], general.sh[v * 12 + c], 1e-5 * peak) << v;
+    }
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(iso.tally.scattered[c], general.tally.scattered[c], 1e-5 * general.tally.scattered[c]);
+        EXPECT_NEAR(iso.tally.injected[c], general.tally.injected[c], 1e-5 * general.tally.injected[c]);
+    }
+}
+
 TEST(PassRunner, BatchesPartitionJobsByAxisAndSource) {
     const CubeQuadrature quad(4);
     LpmCache cache;
