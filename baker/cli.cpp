@@ -342,8 +342,7 @@ void addSolverOptions(CLI::App& app, Args& a) {
         ->group(gS);
     app.add_option("--source", a.sourceShape,
                    "source inside a voxel: auto (linear when a voxel is thicker than optical depth 2), constant, "
-                   "linear (linear characteristics: leaks far less light through thick voxels; 30-50x the time: "
-                   "its sweep is the scalar reference kernel)")
+                   "linear (linear characteristics: leaks far less light through thick voxels; 3-5x the time)")
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "constant", "linear"}))
         ->group(gS);

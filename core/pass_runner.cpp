@@ -237,9 +237,9 @@ void PassRunner::runGeneral(const std::vector<Job>& jobs, int r, Tally& total, b
     const size_t N = m_.voxelCount();
     const size_t batchMem = size_t(512) << 20;
     const size_t maxBatch = std::max<size_t>(1, batchMem / std::max<size_t>(1, N * 3 * shape_.moments * sizeof(float)));
-    // The linear source's reference kernel sweeps one job a thread, each into a whole-grid
-    // buffer (48 B a voxel): two jobs a thread keep the threads busy with fewer of them
-    // (session 41: the 1M smoke at density scale 150 held 6 of 74 MB, peak 843 -> 587 MiB).
+    // The linear source's jobs each deposit into a whole-grid buffer (48 B a voxel): two
+    // jobs a thread keep the threads busy with fewer of them (session 41: the 1M smoke at
+    // density scale 150 held 6 of 74 MB, peak 843 -> 587 MiB).
     const size_t threadBatch = shape_.moments == 4 ? size_t(2 * maxThreads()) : size_t(8);
     runFilled(jobs, std::min({maxBatch, size_t(8), threadBatch}), r, total, {}, depositSh, out);
 }

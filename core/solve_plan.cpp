@@ -116,10 +116,10 @@ void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan&
     const double tau = scene.maxVoxelTau;
     plan.linearSource = s.linearSource == 1 || (s.linearSource < 0 && tau > s.linearSourceAbove);
     const char* shape = plan.linearSource ? "linear source inside voxels" : "voxel-constant source inside voxels";
-    // The linear source's sweep is the scalar reference kernel (docs/performance.md,
-    // "Session 41"): the fine plan names its price and the way around it.
+    // The fine plan names the linear source's price (docs/performance.md, "Session 42")
+    // and the way around it.
     const char* price = plan.linearSource && !scene.continuation
-                            ? "; it takes 30-50x the constant source's time (--source constant: faster, less "
+                            ? "; it takes 3-5x the constant source's time (--source constant: faster, less "
                               "accurate in the thick voxels)"
                             : "";
     if (s.linearSource < 0)
@@ -235,9 +235,9 @@ void planAcceleration(const LpmSettings& s, SolvePlan& plan) {
 void planCost(const SceneSummary& scene, const LpmSettings& s, int threads, SolvePlan& plan) {
     const int n = s.directionsPerFace, nd = 6 * n * n, M = plan.linearSource ? 4 : 1;
     const int nb = plan.binsPerFace == 0 ? 1 : 6 * plan.binsPerFace * plan.binsPerFace, nc = shCount(plan.shOrder);
-    const bool isotropicFold = M == 1 && nb == 1 && nc == 1;
+    const bool isotropicFold = nb == 1 && nc == 1;
     const double N = double(scene.storedVoxels),
-                 perThread = isotropicFold ? kPlannedRateBatched
+                 perThread = isotropicFold ? (M == 4 ? kPlannedRateLinearBatched : kPlannedRateBatched)
                                            : (M == 4 ? kPlannedRateLinearSource : kPlannedRateGeneralFold);
     const double rate = perThread * std::max(1, threads);
     const double perSlice = segmentsPerSlice(n);
@@ -245,9 +245,12 @@ void planCost(const SceneSummary& scene, const LpmSettings& s, int threads, Solv
     plan.predictedSecondsPerFinePass = plan.predictedSegmentsPerFinePass / rate;
     const double unshotBytes =
         plan.separableSource ? 2 * N * (1 + nb / 8.0) * 3 * sizeof(float) : 2 * N * nb * M * 3 * sizeof(float);
-    // Deposit buffers: the isotropic fold's batches, 8 directions of the general fold (and
-    // what it streams), or 4 and the bin's source with separable sources.
-    const double foldBytes = (isotropicFold ? 6.0 : (plan.separableSource ? 5.0 : 16.0)) * N * 3 * M * sizeof(float);
+    // Deposit buffers: the isotropic fold's batches (the linear source's: one a thread), 8
+    // directions of the general fold (and what it streams), or 4 and the bin's source with
+    // separable sources.
+    const double isotropicBuffers = M == 4 ? double(std::max(1, threads)) : 6.0;
+    const double foldBytes =
+        (isotropicFold ? isotropicBuffers : (plan.separableSource ? 5.0 : 16.0)) * N * 3 * M * sizeof(float);
     const double shBytes = N * nc * 3 * sizeof(float);
     plan.predictedBytes = unshotBytes + foldBytes + shBytes + N * sizeof(float) * (scene.emission ? 4 : 1);
     const double lightSweeps =

@@ -80,11 +80,12 @@ struct SolvePlan {
 
 /// Ray-segment updates per second and thread that the planner's time predictions assume,
 /// per kind of pass: the batched sweeps of the isotropic fold, per-direction sweeps with
-/// the general fold (bins and SH), and the linear-source reference kernel. Measured on this
+/// the general fold (bins and SH), and the same two with the linear source. Measured on this
 /// project's 2-core reference machine (docs/solve_plan.md); the stats JSON gives the
 /// measured time of the first fine pass beside the prediction.
 constexpr double kPlannedRateBatched = 2.5e8;
 constexpr double kPlannedRateGeneralFold = 5.0e7;
+constexpr double kPlannedRateLinearBatched = 1.4e8;
 constexpr double kPlannedRateLinearSource = 1.0e7;
 
 /// The plan for `scene` under `s` (s must be valid: LpmSettings::validate). Pure: the

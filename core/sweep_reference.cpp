@@ -1,5 +1,5 @@
 // The reference LPM sweep (one ray at a time, double-precision DDA): the definition the
-// fast kernel (core/sweep.cpp) is tested against, and the kernel of the linear source.
+// fast kernels (core/sweep.cpp: sweepStep, sweepStepLinear) are tested against.
 // Equations: docs/lpm_solver.md.
 #include <algorithm>
 #include <cmath>
