@@ -1,5 +1,5 @@
 // The fast sweep's segment for a source linear inside each voxel (docs/performance.md,
-// "The linear source's fast kernel"): 8 rays (one chunk of a plane row) through 8 voxels,
+// "Session 42"): 8 rays (one chunk of a plane row) through 8 voxels,
 // float32, the lane loop vectorised. The equations are core/segment.h's:
 //   L(l) = L0 phi0 + l (qa phi1 + qb phi2)
 //   M0   = l [L0 phi1 + l (qa phi2 + qb phi3)]
