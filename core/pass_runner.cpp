@@ -254,6 +254,24 @@ void PassRunner::runFilled(const std::vector<Job>& jobs, size_t batch, int r, Ta
                    });
 }
 
+namespace {
+
+// What every job of the isotropic fold shares: band 0 per unit of bin, and the bin
+// coefficient per unit of weight (PassRunner::isotropic checks they are shared); and the
+// jobs' sweep batches (two per axis and source: one sign each).
+struct IsotropicFold {
+    double shPerBin = 0;
+    float perWeight = 0;
+    std::vector<std::vector<const Job*>> batches;
+    explicit IsotropicFold(const std::vector<Job>& jobs) : batches(sweepBatches(jobs, 2)) {
+        if (jobs.empty()) return;
+        shPerBin = jobs[0].shCoef[0] / jobs[0].binCoef[0];
+        perWeight = float(jobs[0].binCoef[0] / jobs[0].weight);
+    }
+};
+
+}  // namespace
+
 // Isotropic bins, SH order 0 and a voxel-constant source: every job folds as one scalar
 // (its bin coefficient) times the same pair (1 for the bin, shPerBin for band 0), so jobs
 // deposit straight into fixed accumulators: no per-direction buffer and no fold pass.
@@ -262,18 +280,15 @@ void PassRunner::runFilled(const std::vector<Job>& jobs, size_t batch, int r, Ta
 // the same for any thread count.
 void PassRunner::runIsotropic(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh,
                               std::vector<float>& out) const {
-    constexpr int kBatchSplit = 2;
     const size_t N = m_.voxelCount();
-    const double shPerBin = jobs.empty() ? 0.0 : jobs[0].shCoef[0] / jobs[0].binCoef[0];
-    const float perWeight = jobs.empty() ? 0.0f : float(jobs[0].binCoef[0] / jobs[0].weight);
-    const std::vector<std::vector<const Job*>> batches = sweepBatches(jobs, kBatchSplit);
-    const size_t G = batches.size();
+    const IsotropicFold fold(jobs);
+    const size_t G = fold.batches.size();
     reserveBuffers(G, N * 3);
     const std::vector<std::vector<float>>& acc = buffers_;
     std::vector<Tally> tallies(G);
     parallelForChunks(G, 1, [&](size_t gb, size_t ge) {
         for (size_t g = gb; g < ge; ++g)
-            sweepStepBatch(m_, batches[g], r, depositBuffer(g, N * 3).data(), tallies[g], perWeight);
+            sweepStepBatch(m_, fold.batches[g], r, depositBuffer(g, N * 3).data(), tallies[g], fold.perWeight);
     });
     for (const Tally& t : tallies) total.add(t);
     parallelForChunks(N * 3, 1 << 14, [&](size_t b, size_t e) {
@@ -281,7 +296,7 @@ void PassRunner::runIsotropic(const std::vector<Job>& jobs, int r, Tally& total,
             float sum = 0;
             for (size_t g = 0; g < G; ++g) sum += acc[g][i];
             out[i] += sum;
-            if (depositSh) sh_[i] += float(shPerBin * sum);
+            if (depositSh) sh_[i] += float(fold.shPerBin * sum);
         }
     });
 }
@@ -296,19 +311,17 @@ void PassRunner::runIsotropic(const std::vector<Job>& jobs, int r, Tally& total,
 // voxels that keep slopes, band 0 from the mean.
 void PassRunner::runIsotropicLinear(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh,
                                     std::vector<float>& out) const {
-    constexpr int kBatchSplit = 2;
     const size_t N = m_.voxelCount();
-    const double shPerBin = jobs.empty() ? 0.0 : jobs[0].shCoef[0] / jobs[0].binCoef[0];
-    const float perWeight = jobs.empty() ? 0.0f : float(jobs[0].binCoef[0] / jobs[0].weight);
-    const std::vector<std::vector<const Job*>> batches = sweepBatches(jobs, kBatchSplit);
+    const IsotropicFold fold(jobs);
     const size_t round = size_t(std::max(1, maxThreads()));
-    reserveBuffers(std::min(round, batches.size()), N * 12);
-    for (size_t g0 = 0; g0 < batches.size(); g0 += round) {
-        const size_t n = std::min(round, batches.size() - g0);
+    reserveBuffers(std::min(round, fold.batches.size()), N * 12);
+    for (size_t g0 = 0; g0 < fold.batches.size(); g0 += round) {
+        const size_t n = std::min(round, fold.batches.size() - g0);
         std::vector<Tally> tallies(n);
         parallelForChunks(n, 1, [&](size_t gb, size_t ge) {
             for (size_t g = gb; g < ge; ++g)
-                sweepStepLinearBatch(m_, batches[g0 + g], r, depositBuffer(g, N * 12).data(), tallies[g], perWeight);
+                sweepStepLinearBatch(m_, fold.batches[g0 + g], r, depositBuffer(g, N * 12).data(), tallies[g],
+                                     fold.perWeight);
         });
         for (const Tally& t : tallies) total.add(t);
         parallelForChunks(N, 1 << 12, [&](size_t b, size_t e) {
@@ -318,7 +331,7 @@ void PassRunner::runIsotropicLinear(const std::vector<Job>& jobs, int r, Tally& 
                     const float* a = &buffers_[g][v * 12];
                     for (int c = 0; c < 3; ++c) {
                         out[v * 12 + size_t(c)] += a[c];
-                        if (depositSh) sh_[v * 3 + size_t(c)] += float(shPerBin * a[c]);
+                        if (depositSh) sh_[v * 3 + size_t(c)] += float(fold.shPerBin * a[c]);
                     }
                     for (int k = 1; k < moments; ++k)
                         for (int c = 0; c < 3; ++c) out[v * 12 + size_t(3 * k + c)] += 12.0f * a[3 * k + c];

@@ -420,14 +420,39 @@ struct GatherSource {
           stride(job.srcStride), scale{job.srcScale.r, job.srcScale.g, job.srcScale.b}, slopes(job.srcLinear) {}
 };
 
+// The source of voxel x (sigma sg) into lane q of a constant chunk: q = sigma scale src.
+inline void gatherConstantSource(const GatherSource& g, size_t x, float sg, float* q) {
+    if (g.src)
+        for (int c = 0; c < 3; ++c) q[(1 + c) * kLanes] = sg * g.scale[c] * g.src[x * g.stride + c];
+    else if (g.srcBf16)
+        for (int c = 0; c < 3; ++c) q[(1 + c) * kLanes] = sg * g.scale[c] * floatFromBf16(g.srcBf16[x * g.stride + c]);
+}
+
+// The same into lane q of a linear chunk (LinearChunk): q0 and the slopes, each times
+// sigma and the job's scale (0 without a source or slopes).
+inline void gatherLinearSource(const GatherSource& g, size_t x, float sg, float* q) {
+    constexpr int n = LinearChunk::kLanes;
+    if (!g.src) return;
+    const float* sp = g.src + x * g.stride;
+    for (int c = 0; c < 3; ++c) {
+        const float k0 = sg * g.scale[c];
+        q[(LinearChunk::kQ0 + c) * n] = k0 * sp[c];
+        if (g.slopes)
+            for (int ax = 0; ax < 3; ++ax) q[(LinearChunk::kSlope + 3 * ax + c) * n] = k0 * sp[3 * (ax + 1) + c];
+    }
+}
+
 // One chunk (the nU voxels of a tile row segment from storage index x0, stride sU) into
 // the planes at q: sigma, the source, deposits zeroed, 1/sigma; its smallest and largest
 // sigma into range. empty: an unallocated tile inside a span (reads as empty). Returns
 // whether the chunk is live: it holds extinction or a voxel whose deposit is read. Rays
 // cross a dead chunk unchanged and nothing reads its deposits (no sigma to scatter them,
-// no caller), so the sweep may skip it (docs/performance.md, "Dead chunks").
+// no caller), so the sweep may skip it (docs/performance.md, "Dead chunks"). Linear: the
+// linear source's chunk (LinearChunk; sigma and q0 lie where the constant chunk has them).
+template <bool Linear>
 inline bool gatherChunk(const GatherSource& g, bool empty, size_t x0, size_t sU, int nU, float* q, float* range) {
-    std::fill_n(q, kChunk, 0.0f);
+    constexpr int floats = Linear ? LinearChunk::kFloats : kChunk, invSigma = Linear ? LinearChunk::kInvSigma : 7;
+    std::fill_n(q, floats, 0.0f);
     range[0] = range[1] = 0.0f;
     if (empty) return false;
     bool wanted = !g.wanted;
@@ -436,45 +461,13 @@ inline bool gatherChunk(const GatherSource& g, bool empty, size_t x0, size_t sU,
         if (g.wanted) wanted = wanted || g.wanted[x];
         const float sg = g.sigma[x];
         q[lu] = sg;
-        if (g.src)
-            for (int c = 0; c < 3; ++c) q[(1 + c) * kLanes + lu] = sg * g.scale[c] * g.src[x * g.stride + c];
-        else if (g.srcBf16)
-            for (int c = 0; c < 3; ++c)
-                q[(1 + c) * kLanes + lu] = sg * g.scale[c] * floatFromBf16(g.srcBf16[x * g.stride + c]);
+        if constexpr (Linear) gatherLinearSource(g, x, sg, q + lu);
+        else gatherConstantSource(g, x, sg, q + lu);
     }
     // 1/sigma over the whole chunk at once: one vector division (padding lanes are 0).
-    for (int i = 0; i < kLanes; ++i) q[7 * kLanes + i] = q[i] > 0 ? 1.0f / q[i] : 0.0f;
+    for (int i = 0; i < kLanes; ++i) q[invSigma * kLanes + i] = q[i] > 0 ? 1.0f / q[i] : 0.0f;
     range[0] = *std::min_element(q, q + kLanes);
     range[1] = *std::max_element(q, q + kLanes);
-    return wanted || range[1] > 0;
-}
-
-// gatherChunk for the linear source's chunk (LinearChunk): sigma, q0 and the slopes (each
-// times sigma and the job's scale; 0 without a source or slopes), deposits zeroed, 1/sigma.
-inline bool gatherChunkLinear(const GatherSource& g, bool empty, size_t x0, size_t sU, int nU, float* q, float* range) {
-    constexpr int n = LinearChunk::kLanes;
-    std::fill_n(q, LinearChunk::kFloats, 0.0f);
-    range[0] = range[1] = 0.0f;
-    if (empty) return false;
-    bool wanted = !g.wanted;
-    for (int lu = 0; lu < nU; ++lu) {
-        const size_t x = x0 + size_t(lu) * sU;
-        if (g.wanted) wanted = wanted || g.wanted[x];
-        const float sg = g.sigma[x];
-        q[LinearChunk::kSigma * n + lu] = sg;
-        if (!g.src) continue;
-        const float* sp = g.src + x * g.stride;
-        for (int c = 0; c < 3; ++c) {
-            const float k0 = sg * g.scale[c];
-            q[(LinearChunk::kQ0 + c) * n + lu] = k0 * sp[c];
-            if (g.slopes)
-                for (int ax = 0; ax < 3; ++ax)
-                    q[(LinearChunk::kSlope + 3 * ax + c) * n + lu] = k0 * sp[3 * (ax + 1) + c];
-        }
-    }
-    for (int i = 0; i < n; ++i) q[LinearChunk::kInvSigma * n + i] = q[i] > 0 ? 1.0f / q[i] : 0.0f;
-    range[0] = *std::min_element(q, q + n);
-    range[1] = *std::max_element(q, q + n);
     return wanted || range[1] > 0;
 }
 
@@ -515,10 +508,9 @@ void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* ro
                 const AxisFrame::TileWalk& w = walks[size_t(i)];
                 const size_t chunk = at / chunkFloats + size_t(i);
                 const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
-                const bool live =
-                    linear
-                        ? gatherChunkLinear(g, empty[size_t(i)], x0, w.sU, w.nU, &P[chunk * chunkFloats], &R[2 * chunk])
-                        : gatherChunk(g, empty[size_t(i)], x0, w.sU, w.nU, &P[chunk * chunkFloats], &R[2 * chunk]);
+                float* q = &P[chunk * chunkFloats];
+                const bool live = linear ? gatherChunk<true>(g, empty[size_t(i)], x0, w.sU, w.nU, q, &R[2 * chunk])
+                                         : gatherChunk<false>(g, empty[size_t(i)], x0, w.sU, w.nU, q, &R[2 * chunk]);
                 if (live) {
                     if (liveFirst < 0) liveFirst = i;
                     liveLast = i;
@@ -534,40 +526,46 @@ void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* ro
 // there are overwritten; a bfloat16 phi, core/bf16.h, only assigned); sums sigma d (sca)
 // and q (src), from the float deposits. clear: the deposits read are zeroed (planes shared
 // by a group, each sweep scattering its own).
-template <bool Assign, class Out>
-void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, int tu, int tv, float k, Out* phi,
-                 double sca[3], double src[3], bool clear) {
-    static_assert(Assign || std::is_same_v<Out, float>, "bfloat16 deposits are assigned, never added to");
+// The chunks of allocated tile (tu, tv) of a tile layer in the planes (Chunk floats each),
+// one per voxel row of the tile: row(q, x0, w) with the chunk, the storage index of its
+// first voxel and the tile's walk (w.nU voxels, w.sU apart). Nothing for an unallocated tile.
+template <int Chunk, class Row>
+inline void forTileChunks(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, int tu, int tv, Row&& row) {
     constexpr int K = Medium::kTile;
     const std::int32_t slot = f.tileSlot(layer, tu, tv);
     if (slot == -2) return;
     const AxisFrame::TileWalk w = f.tileWalk(slot, layer, tu, tv);
-    float ts[3] = {0, 0, 0}, tq[3] = {0, 0, 0};
     for (int s = 0; s < w.nA; ++s)
-        for (int lv = 0; lv < w.nV; ++lv) {
-            float* q = &P[planeIndex(rows, tv * K + lv, s, tu * K)];
-            const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
-            // bfloat16: the chunk's values rounded at once (contiguous lanes: vector code),
-            // then stored at the voxels' strided places.
-            std::uint16_t rounded[3][kLanes];
-            if constexpr (std::is_same_v<Out, Bf16>)
-                for (int c = 0; c < 3; ++c)
-                    for (int lu = 0; lu < kLanes; ++lu)
-                        rounded[c][lu] = bf16FromFloat(k * q[(4 + c) * kLanes + lu]).bits;
-            for (int lu = 0; lu < w.nU; ++lu) {
-                Out* ph = &phi[(x0 + size_t(lu) * w.sU) * 3];
-                for (int c = 0; c < 3; ++c) {
-                    const float d = q[(4 + c) * kLanes + lu];
-                    if constexpr (std::is_same_v<Out, Bf16>) ph[c].bits = rounded[c][lu];
-                    else if constexpr (Assign) ph[c] = k * d;
-                    else ph[c] += k * d;
-                    ts[c] += q[lu] * d;
-                    tq[c] += q[(1 + c) * kLanes + lu];
-                }
+        for (int lv = 0; lv < w.nV; ++lv)
+            row(&P[planeIndex<Chunk>(rows, tv * K + lv, s, tu * K)], w.base + size_t(s) * w.sA + size_t(lv) * w.sV, w);
+}
+
+template <bool Assign, class Out>
+void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, int tu, int tv, float k, Out* phi,
+                 double sca[3], double src[3], bool clear) {
+    static_assert(Assign || std::is_same_v<Out, float>, "bfloat16 deposits are assigned, never added to");
+    float ts[3] = {0, 0, 0}, tq[3] = {0, 0, 0};
+    forTileChunks<kChunk>(f, rows, P, layer, tu, tv, [&](float* q, size_t x0, const AxisFrame::TileWalk& w) {
+        // bfloat16: the chunk's values rounded at once (contiguous lanes: vector code),
+        // then stored at the voxels' strided places.
+        std::uint16_t rounded[3][kLanes];
+        if constexpr (std::is_same_v<Out, Bf16>)
+            for (int c = 0; c < 3; ++c)
+                for (int lu = 0; lu < kLanes; ++lu) rounded[c][lu] = bf16FromFloat(k * q[(4 + c) * kLanes + lu]).bits;
+        for (int lu = 0; lu < w.nU; ++lu) {
+            Out* ph = &phi[(x0 + size_t(lu) * w.sU) * 3];
+            for (int c = 0; c < 3; ++c) {
+                const float d = q[(4 + c) * kLanes + lu];
+                if constexpr (std::is_same_v<Out, Bf16>) ph[c].bits = rounded[c][lu];
+                else if constexpr (Assign) ph[c] = k * d;
+                else ph[c] += k * d;
+                ts[c] += q[lu] * d;
+                tq[c] += q[(1 + c) * kLanes + lu];
             }
-            if (clear)
-                for (int c = 0; c < 3; ++c) std::fill_n(&q[(4 + c) * kLanes], w.nU, 0.0f);
         }
+        if (clear)
+            for (int c = 0; c < 3; ++c) std::fill_n(&q[(4 + c) * kLanes], w.nU, 0.0f);
+    });
     for (int c = 0; c < 3; ++c) {
         sca[c] += ts[c];
         src[c] += tq[c];
@@ -580,15 +578,10 @@ void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, 
 template <bool Assign>
 void scatterTileLinear(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, int tu, int tv, float k,
                        float* phi, double sca[3], double src[3], bool clear) {
-    constexpr int K = Medium::kTile, n = LinearChunk::kLanes;
-    const std::int32_t slot = f.tileSlot(layer, tu, tv);
-    if (slot == -2) return;
-    const AxisFrame::TileWalk w = f.tileWalk(slot, layer, tu, tv);
+    constexpr int n = LinearChunk::kLanes;
     float ts[3] = {0, 0, 0}, tq[3] = {0, 0, 0};
-    for (int s = 0; s < w.nA; ++s)
-        for (int lv = 0; lv < w.nV; ++lv) {
-            float* q = &P[planeIndex<LinearChunk::kFloats>(rows, tv * K + lv, s, tu * K)];
-            const size_t x0 = w.base + size_t(s) * w.sA + size_t(lv) * w.sV;
+    forTileChunks<LinearChunk::kFloats>(
+        f, rows, P, layer, tu, tv, [&](float* q, size_t x0, const AxisFrame::TileWalk& w) {
             for (int lu = 0; lu < w.nU; ++lu) {
                 float* ph = &phi[(x0 + size_t(lu) * w.sU) * 12];
                 for (int j = 0; j < 12; ++j) {
@@ -602,7 +595,7 @@ void scatterTileLinear(const AxisFrame& f, const PlaneRow* rows, float* P, int l
                 }
             }
             if (clear) std::fill_n(&q[LinearChunk::kDeposit * n], 12 * n, 0.0f);
-        }
+        });
     for (int c = 0; c < 3; ++c) {
         sca[c] += ts[c];
         src[c] += tq[c];

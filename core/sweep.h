@@ -73,8 +73,8 @@ void sweepReference(const Medium& m, const Job& job, int r, float* phi, Tally& t
 /// is identical in meaning (it does not include depositScale).
 void sweepStep(const Medium& m, const Job& job, int r, float* phi, Tally& tally, float depositScale = 1.0f);
 
-/// Fast kernel for the linear source (docs/performance.md, "Session 42"): sweepStep's geometry and planes with chunks of the linear source
-/// (core/linear_segment_lanes.h); phi [stored voxel][mean, x, y, z][rgb] += Phi, as
+/// Fast kernel for the linear source (docs/performance.md, "Session 42"): sweepStep's geometry and planes with chunks
+/// of the linear source (core/linear_segment_lanes.h); phi [stored voxel][mean, x, y, z][rgb] += Phi, as
 /// sweepReference<true> adds, agreeing with it to float rounding (with Medium::wantedS
 /// set, at the voxels with extinction or wanted). A job without slopes (srcLinear false)
 /// sweeps a voxel-constant source and still deposits the 4 moments.

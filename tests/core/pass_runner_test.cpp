@@ -22,21 +22,30 @@ struct PassOutput {
     Tally tally;
 };
 
-/// Pass 0 under a uniform sky, folded into `coeffs` SH coefficients and one isotropic bin.
-PassOutput runSkyPass(const Medium& m, int coeffs) {
+/// Pass 0 under a uniform sky, folded into `coeffs` SH coefficients and one isotropic bin,
+/// with `moments` per bin; with the linear source's 4 also the pass its folded source feeds
+/// (slopes and all; voxels with odd index keep no slopes), `out` holding both passes'.
+PassOutput runSkyPasses(const Medium& m, int coeffs, int moments = 1) {
     LpmCache cache;
     const CubeQuadrature quad(4);
     const auto ff = cache.formFactors(4, 0, 0.0);
     const JobFactory factory(quad, *ff, m.localToWorld, m.voxelVolume(), coeffs, 0.0);
     const std::vector<RGB> sky(quad.count(), RGB(1.0f, 0.8f, 0.5f));
     const std::vector<Job> jobs = factory.lightJobs(m, sky, true, {});
+    const size_t N = m.voxelCount();
+    std::vector<std::uint8_t> slopes;
+    for (size_t v = 0; v < N && moments == 4; ++v) slopes.push_back(v % 2 == 0);
     PassOutput o;
-    o.sh.assign(m.voxelCount() * coeffs * 3, 0.0f);
-    o.out.assign(m.voxelCount() * 3, 0.0f);
-    const std::vector<std::uint8_t> noSlopes;
-    const PassRunner runner(m, FoldShape{1, 1, coeffs}, noSlopes, o.sh);
+    o.sh.assign(N * coeffs * 3, 0.0f);
+    o.out.assign(N * 3 * moments, 0.0f);
+    const PassRunner runner(m, FoldShape{1, moments, coeffs}, slopes, o.sh);
     EXPECT_EQ(runner.isotropic(jobs), coeffs == 1);
     runner.run(jobs, 2, o.tally, true, o.out);
+    if (moments == 4) {
+        std::vector<float> next(o.out.size(), 0.0f);
+        runner.run(factory.sourceJobs(o.out, 4, m.albedo), 1, o.tally, true, next);
+        for (size_t i = 0; i < next.size(); ++i) o.out[i] += next[i];
+    }
     return o;
 }
 
@@ -44,7 +53,7 @@ PassOutput runSkyPass(const Medium& m, int coeffs) {
 
 TEST(PassRunner, IsotropicFoldEqualsGeneralFold) {
     const Medium m = makeVolume(VolumeKind::Cloud, 12, 3.0);
-    const PassOutput iso = runSkyPass(m, 1), general = runSkyPass(m, 4);
+    const PassOutput iso = runSkyPasses(m, 1), general = runSkyPasses(m, 4);
     float peak = 0;
     for (float v : general.out) peak = std::max(peak, v);
     ASSERT_GT(peak, 0);
@@ -57,41 +66,12 @@ TEST(PassRunner, IsotropicFoldEqualsGeneralFold) {
         EXPECT_NEAR(iso.tally.scattered[c], general.tally.scattered[c], 1e-5 * general.tally.scattered[c]);
 }
 
-namespace {
-
-/// Two passes of the linear source (4 moments) under a uniform sky, folded into `coeffs`
-/// SH coefficients and one isotropic bin: pass 0 (boundary light), then the pass its
-/// folded source feeds (slopes and all); voxels with odd index keep no slopes.
-PassOutput runLinearPasses(const Medium& m, int coeffs) {
-    LpmCache cache;
-    const CubeQuadrature quad(4);
-    const auto ff = cache.formFactors(4, 0, 0.0);
-    const JobFactory factory(quad, *ff, m.localToWorld, m.voxelVolume(), coeffs, 0.0);
-    const std::vector<RGB> sky(quad.count(), RGB(1.0f, 0.8f, 0.5f));
-    const size_t N = m.voxelCount();
-    std::vector<std::uint8_t> slopes(N);
-    for (size_t v = 0; v < N; ++v) slopes[v] = v % 2 == 0;
-    PassOutput o;
-    o.sh.assign(N * coeffs * 3, 0.0f);
-    std::vector<float> first(N * 12, 0.0f);
-    const PassRunner runner(m, FoldShape{1, 4, coeffs}, slopes, o.sh);
-    const std::vector<Job> light = factory.lightJobs(m, sky, true, {});
-    EXPECT_EQ(runner.isotropic(light), coeffs == 1);
-    runner.run(light, 2, o.tally, true, first);
-    o.out.assign(N * 12, 0.0f);
-    runner.run(factory.sourceJobs(first, 4, m.albedo), 1, o.tally, true, o.out);
-    for (size_t i = 0; i < first.size(); ++i) o.out[i] += first[i];  // both passes compared
-    return o;
-}
-
-}  // namespace
-
 // The linear source's isotropic fold (batched sweeps into fixed accumulators, in rounds)
 // against its general fold (a deposit buffer per direction): the next source's means and
 // slopes, band 0 and the tallies.
 TEST(PassRunner, IsotropicLinearFoldEqualsGeneralFold) {
     Medium m = makeVolume(VolumeKind::Cloud, 12, 3.0);
-    const PassOutput iso = runLinearPasses(m, 1), general = runLinearPasses(m, 4);
+    const PassOutput iso = runSkyPasses(m, 1, 4), general = runSkyPasses(m, 4, 4);
     float peak = 0, slopePeak = 0;
     for (size_t i = 0; i < general.out.size(); ++i)
         (i % 12 < 3 ? peak : slopePeak) = std::max(i % 12 < 3 ? peak : slopePeak, std::fabs(general.out[i]));

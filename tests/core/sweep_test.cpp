@@ -53,6 +53,19 @@ std::vector<char> blockVoxels(const Medium& m) {
     return inBlock;
 }
 
+// Largest difference of two sweeps' tallies (injected, escaped, absorbed, scattered),
+// relative to the reference's injected power, over the channels.
+double tallyDifference(const Tally& tr, const Tally& tf) {
+    double worst = 0;
+    for (int ch = 0; ch < 3; ++ch) {
+        const double inj = std::max(tr.injected[ch], 1e-30);
+        for (double d : {tf.injected[ch] - tr.injected[ch], tf.escaped[ch] - tr.escaped[ch],
+                         tf.absorbed[ch] - tr.absorbed[ch], tf.scattered[ch] - tr.scattered[ch]})
+            worst = std::max(worst, std::fabs(d) / inj);
+    }
+    return worst;
+}
+
 struct Compare {
     double maxRel = 0;  // largest |fast - ref| / (max |ref|) over voxels and channels
     double tallyRel = 0;
@@ -69,12 +82,7 @@ Compare compareKernels(const Medium& m, const Job& job, int r) {
     Compare c;
     for (size_t i = 0; i < ref.size(); ++i)
         c.maxRel = std::max(c.maxRel, std::fabs(double(fast[i]) - ref[i]) / std::max(scale, 1e-30));
-    for (int ch = 0; ch < 3; ++ch) {
-        const double inj = std::max(tr.injected[ch], 1e-30);
-        for (double d : {tf.injected[ch] - tr.injected[ch], tf.escaped[ch] - tr.escaped[ch],
-                         tf.absorbed[ch] - tr.absorbed[ch], tf.scattered[ch] - tr.scattered[ch]})
-            c.tallyRel = std::max(c.tallyRel, std::fabs(d) / inj);
-    }
+    c.tallyRel = tallyDifference(tr, tf);
     return c;
 }
 
@@ -593,12 +601,7 @@ LinearCompare compareLinearKernels(const Medium& m, const Job& job, int r) {
             }
         c.maxRel[k] = worst / scale;
     }
-    for (int ch = 0; ch < 3; ++ch) {
-        const double inj = std::max(tr.injected[ch], 1e-30);
-        for (double d : {tf.injected[ch] - tr.injected[ch], tf.escaped[ch] - tr.escaped[ch],
-                         tf.absorbed[ch] - tr.absorbed[ch], tf.scattered[ch] - tr.scattered[ch]})
-            c.tallyRel = std::max(c.tallyRel, std::fabs(d) / inj);
-    }
+    c.tallyRel = tallyDifference(tr, tf);
     return c;
 }
 
