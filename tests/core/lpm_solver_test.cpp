@@ -308,16 +308,18 @@ TEST(LpmSolver, IsotropicPhaseDecidesShOrderZero) {
 class BitIdentical : public ::testing::TestWithParam<int> {};
 
 TEST_P(BitIdentical, ForAnyThreadCount) {
-    // Step (0) and linear (1) source schemes.
+    // Step (even) and linear (odd) source schemes, at g = 0.5 (0, 1: bins, SH and the
+    // general fold) and g = 0 (2, 3: the isotropic fold's batches; the linear source's
+    // fold in rounds of one buffer a thread).
     Medium m = makeVolume(VolumeKind::Cloud, 16, 3.0);
-    m.g = 0.5;
+    m.g = GetParam() < 2 ? 0.5 : 0.0;
     m.albedo = RGB(0.9f);
     const EnvMap sky = makeSky(64);
     Lights lights;
     lights.env = &sky;
     lights.suns.push_back({normalize(Vec3{1, 1, 0}), RGB(3.0f), 0.0});
     LpmSettings s;
-    s.linearSource = GetParam();
+    s.linearSource = GetParam() % 2;
     std::vector<float> ref;
     for (int threads : {1, 2, 16}) {
         ThreadLimit limit(threads);
@@ -326,7 +328,7 @@ TEST_P(BitIdentical, ForAnyThreadCount) {
         else EXPECT_EQ(0, std::memcmp(ref.data(), r.sh.data(), ref.size() * sizeof(float))) << threads << " threads";
     }
 }
-INSTANTIATE_TEST_SUITE_P(LinearSource, BitIdentical, ::testing::Values(0, 1));
+INSTANTIATE_TEST_SUITE_P(LinearSource, BitIdentical, ::testing::Values(0, 1, 2, 3));
 
 TEST(LpmSolver, RejectsBadSettings) {
     Medium m = makeBox(2, 2, 2, 1.0);
