@@ -522,10 +522,6 @@ void gatherTileRow(const AxisFrame& f, const GatherSource& g, const PlaneRow* ro
         }
 }
 
-// One allocated tile's deposits times k into phi (added, or assigned: phi's earlier values
-// there are overwritten; a bfloat16 phi, core/bf16.h, only assigned); sums sigma d (sca)
-// and q (src), from the float deposits. clear: the deposits read are zeroed (planes shared
-// by a group, each sweep scattering its own).
 // The chunks of allocated tile (tu, tv) of a tile layer in the planes (Chunk floats each),
 // one per voxel row of the tile: row(q, x0, w) with the chunk, the storage index of its
 // first voxel and the tile's walk (w.nU voxels, w.sU apart). Nothing for an unallocated tile.
@@ -540,6 +536,10 @@ inline void forTileChunks(const AxisFrame& f, const PlaneRow* rows, float* P, in
             row(&P[planeIndex<Chunk>(rows, tv * K + lv, s, tu * K)], w.base + size_t(s) * w.sA + size_t(lv) * w.sV, w);
 }
 
+// One allocated tile's deposits times k into phi (added, or assigned: phi's earlier values
+// there are overwritten; a bfloat16 phi, core/bf16.h, only assigned); sums sigma d (sca)
+// and q (src), from the float deposits. clear: the deposits read are zeroed (planes shared
+// by a group, each sweep scattering its own).
 template <bool Assign, class Out>
 void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, int tu, int tv, float k, Out* phi,
                  double sca[3], double src[3], bool clear) {
@@ -739,7 +739,8 @@ public:
     // weight A_perp w, and scattered by the batch); null: the sweep's own. ownDeposits:
     // shared planes (a group's) whose deposits this sweep scatters itself (scatterOwn),
     // exactly as with planes of its own.
-    // linear: the linear source's sweep (own planes of LinearChunk; phi holds 4 moments).
+    // linear: the linear source's sweep (planes of LinearChunk, its own or shared; phi
+    // holds 4 moments).
     StepSweep(const Medium& m, const Job& job, int r, float depositScale, LayerPlanes* shared = nullptr,
               bool ownDeposits = false, bool linear = false)
         : m_(m), job_(job), g_(m, job, r), f_(m, job.axis), depositScale_(depositScale), linear_(linear) {
