@@ -119,6 +119,7 @@ void LpmSolve::finishWithGeometricTail() {
 // Remaining sum X = sum_{j >= 1} U_{k+j} solves (I - K) X = B, B = `next`, where K is one
 // propagation pass (source -> next unshot), in the inner product <a, b> = sum_d w_d a.b.
 void LpmSolve::finishWithGmres() {
+    runner_->keepFirstMomentsInFloat();  // K must be linear for the Krylov basis
     const size_t len = next_.size();
     // One voxel's weights (they repeat): slopes enter with the weight of their L2 norm over
     // the voxel (Int xi^2 = 1/12).

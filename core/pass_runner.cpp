@@ -305,36 +305,45 @@ void PassRunner::runIsotropic(const std::vector<Job>& jobs, int r, Tally& total,
 // (sweepStepLinearBatch); the batches fold into the next source in batch order, each
 // added on its own (out += a_g, then the next), so the sums are the same whether the
 // batches are swept all at once or, as here, a round of as many as there are threads at
-// a time: 48 B a voxel per buffer, threads buffers instead of one per batch (6 on a
-// scene with sources, 12 on the light pass). The fold is foldDeposits' for one bin: the
-// mean as it is, the slopes from the first moments times 12 (Int xi_k^2 = 1/12) in the
-// voxels that keep slopes, band 0 from the mean.
+// a time: threads buffers instead of one per batch (6 on a scene with sources, 12 on the
+// light pass), each 30 B a voxel: the mean in float, the first moments in bfloat16
+// (docs/performance.md, "Session 43"; 48 B in float after keepFirstMomentsInFloat). The fold is foldDeposits' for one
+// bin: the mean as it is, the slopes from the first moments times 12 (Int xi_k^2 = 1/12) in the voxels that keep
+// slopes, band 0 from the mean.
 void PassRunner::runIsotropicLinear(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh,
                                     std::vector<float>& out) const {
     const size_t N = m_.voxelCount();
     const IsotropicFold fold(jobs);
-    const size_t round = size_t(std::max(1, maxThreads()));
-    reserveBuffers(std::min(round, fold.batches.size()), N * 12);
+    const size_t round = std::min(size_t(std::max(1, maxThreads())), fold.batches.size());
+    const bool exact = exactFirstMoments_;
+    const size_t meanLen = N * (exact ? 12 : 3);
+    reserveBuffers<float>(round, meanLen);
+    if (!exact) reserveBuffers<Bf16>(round, N * 9);
     for (size_t g0 = 0; g0 < fold.batches.size(); g0 += round) {
         const size_t n = std::min(round, fold.batches.size() - g0);
         std::vector<Tally> tallies(n);
         parallelForChunks(n, 1, [&](size_t gb, size_t ge) {
-            for (size_t g = gb; g < ge; ++g)
-                sweepStepLinearBatch(m_, fold.batches[g0 + g], r, depositBuffer(g, N * 12).data(), tallies[g],
-                                     fold.perWeight);
+            for (size_t g = gb; g < ge; ++g) {
+                float* mean = depositBuffer<float>(g, meanLen).data();
+                const LinearBatchDeposits to =
+                    exact ? LinearBatchDeposits{mean, nullptr, nullptr}
+                          : LinearBatchDeposits{nullptr, mean, depositBuffer<Bf16>(g, N * 9).data()};
+                sweepStepLinearBatch(m_, fold.batches[g0 + g], r, to, tallies[g], fold.perWeight);
+            }
         });
         for (const Tally& t : tallies) total.add(t);
         parallelForChunks(N, 1 << 12, [&](size_t b, size_t e) {
             for (size_t v = b; v < e; ++v) {
-                const int moments = slopeVoxel_.empty() || slopeVoxel_[v] ? 4 : 1;
+                const bool slopes = slopeVoxel_.empty() || slopeVoxel_[v];
                 for (size_t g = 0; g < n; ++g) {
-                    const float* a = &buffers_[g][v * 12];
+                    const float* a = &buffers_[g][v * (exact ? 12 : 3)];
                     for (int c = 0; c < 3; ++c) {
                         out[v * 12 + size_t(c)] += a[c];
                         if (depositSh) sh_[v * 3 + size_t(c)] += float(fold.shPerBin * a[c]);
                     }
-                    for (int k = 1; k < moments; ++k)
-                        for (int c = 0; c < 3; ++c) out[v * 12 + size_t(3 * k + c)] += 12.0f * a[3 * k + c];
+                    const Bf16* first = exact ? nullptr : &bf16Buffers_[g][v * 9];
+                    for (int j = 0; j < 9 && slopes; ++j)
+                        out[v * 12 + 3 + size_t(j)] += 12.0f * (exact ? a[3 + j] : floatFromBf16(first[j]));
                 }
             }
         });

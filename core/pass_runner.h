@@ -50,6 +50,12 @@ public:
     /// Frees the deposit buffers kept from pass to pass (before a phase that needs the memory).
     void releaseBuffers() const;
 
+    /// From now on the linear source's isotropic passes keep their batches' first moments in
+    /// float (36 B a voxel more per thread) instead of rounding them to bfloat16: for GMRES,
+    /// whose Krylov space needs the pass to be a linear operator (source iteration damps a
+    /// rounding; a Krylov basis would carry it).
+    void keepFirstMomentsInFloat() const { exactFirstMoments_ = true; }
+
     /// Folds one batch's deposits phi[j] ([voxel][moment][rgb]) of jobs[0..n).
     template <class T>
     using BatchFoldOf = std::function<void(const Job* jobs, size_t n, const std::vector<std::vector<T>>& phi)>;
@@ -99,6 +105,7 @@ private:
     const std::uint32_t* outRow_;
     mutable std::vector<std::vector<float>> buffers_;
     mutable std::vector<std::vector<Bf16>> bf16Buffers_;
+    mutable bool exactFirstMoments_ = false;
 };
 
 /// A batch's jobs jobs[0..n) as sweep groups [begin, end) (sweepStepGroup): runs of

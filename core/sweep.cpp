@@ -572,23 +572,58 @@ void scatterTile(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, 
     }
 }
 
-// scatterTile for the linear source's chunks (LinearChunk): phi [stored voxel][mean, x, y,
-// z][rgb] += k * the deposits (or = when Assign); sums sigma d_mean (sca) and q0 (src).
-// clear: the deposits read are zeroed (a group's planes).
+// One voxel's 12 deposits times k into a whole linear buffer, phi [stored voxel][mean, x,
+// y, z][rgb] (= when Assign, else +=).
 template <bool Assign>
+inline void putLinearVoxel(float* phi, size_t x, const float* q, int lu, float k) {
+    constexpr int n = LinearChunk::kLanes;
+    float* ph = &phi[x * 12];
+    for (int j = 0; j < 12; ++j) {
+        const float d = k * q[(LinearChunk::kDeposit + j) * n + lu];
+        if constexpr (Assign) ph[j] = d;
+        else ph[j] += d;
+    }
+}
+
+// The same into a batch's split deposits: the mean in float, the first moments rounded to
+// bfloat16 (slopes: the chunk's first moments times k, rounded at once when Assign).
+template <bool Assign>
+inline void putLinearVoxel(LinearBatchDeposits out, size_t x, const float* q, int lu, float k,
+                           const std::uint16_t (*slopes)[LinearChunk::kLanes]) {
+    constexpr int n = LinearChunk::kLanes;
+    if (out.whole) return putLinearVoxel<Assign>(out.whole, x, q, lu, k);
+    for (int c = 0; c < 3; ++c) {
+        const float d = k * q[(LinearChunk::kDeposit + c) * n + lu];
+        if constexpr (Assign) out.mean[x * 3 + size_t(c)] = d;
+        else out.mean[x * 3 + size_t(c)] += d;
+    }
+    Bf16* s = &out.slopes[x * 9];
+    for (int j = 0; j < 9; ++j) {
+        if constexpr (Assign) s[j].bits = slopes[j][lu];
+        else s[j] = bf16FromFloat(floatFromBf16(s[j]) + k * q[(LinearChunk::kDeposit + 3 + j) * n + lu]);
+    }
+}
+
+// scatterTile for the linear source's chunks (LinearChunk): the deposits times k into
+// phi (a float* buffer [stored voxel][mean, x, y, z][rgb], or a batch's
+// LinearBatchDeposits), assigned when Assign, else added; sums sigma d_mean (sca) and q0
+// (src). clear: the deposits read are zeroed (a group's planes).
+template <bool Assign, class Target>
 void scatterTileLinear(const AxisFrame& f, const PlaneRow* rows, float* P, int layer, int tu, int tv, float k,
-                       float* phi, double sca[3], double src[3], bool clear) {
+                       Target phi, double sca[3], double src[3], bool clear) {
     constexpr int n = LinearChunk::kLanes;
     float ts[3] = {0, 0, 0}, tq[3] = {0, 0, 0};
     forTileChunks<LinearChunk::kFloats>(
         f, rows, P, layer, tu, tv, [&](float* q, size_t x0, const AxisFrame::TileWalk& w) {
+            std::uint16_t slopes[9][n];  // contiguous lanes: vector code
+            if constexpr (Assign && std::is_same_v<Target, LinearBatchDeposits>)
+                for (int j = 0; j < 9 && !phi.whole; ++j)
+                    for (int lu = 0; lu < n; ++lu)
+                        slopes[j][lu] = bf16FromFloat(k * q[(LinearChunk::kDeposit + 3 + j) * n + lu]).bits;
             for (int lu = 0; lu < w.nU; ++lu) {
-                float* ph = &phi[(x0 + size_t(lu) * w.sU) * 12];
-                for (int j = 0; j < 12; ++j) {
-                    const float d = k * q[(LinearChunk::kDeposit + j) * n + lu];
-                    if constexpr (Assign) ph[j] = d;
-                    else ph[j] += d;
-                }
+                const size_t x = x0 + size_t(lu) * w.sU;
+                if constexpr (std::is_same_v<Target, float*>) putLinearVoxel<Assign>(phi, x, q, lu, k);
+                else putLinearVoxel<Assign>(phi, x, q, lu, k, slopes);
                 for (int c = 0; c < 3; ++c) {
                     ts[c] += q[LinearChunk::kSigma * n + lu] * q[(LinearChunk::kDeposit + c) * n + lu];
                     tq[c] += q[(LinearChunk::kQ0 + c) * n + lu];
@@ -678,10 +713,10 @@ public:
         }
     }
 
-    // The linear source's phi [stored voxel][mean, x, y, z][rgb] += k * the layer's
-    // deposits (= when Assign); clear as scatter's.
-    template <bool Assign = false>
-    void scatterLinear(int layer, float k, float* phi, double sca[3], double src[3], bool clear = false) {
+    // The linear source's phi (scatterTileLinear's targets) += k * the layer's deposits
+    // (= when Assign); clear as scatter's.
+    template <bool Assign = false, class Target = float*>
+    void scatterLinear(int layer, float k, Target phi, double sca[3], double src[3], bool clear = false) {
         for (int tv = 0; tv < f_.tnv; ++tv) {
             int first, last;
             ext_.rowExtent(layer, tv, first, last);
@@ -1551,9 +1586,12 @@ void sweepStepLinearGroup(const Medium& m, const std::vector<const Job*>& jobs, 
 
 namespace {
 
-// sweepStepBatch, or with linear its linear source's (sweepStepLinearBatch).
-void sweepBatchInto(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
-                    float depositPerWeight, bool linear) {
+// sweepStepBatch (phi a float*), or the linear source's (sweepStepLinearBatch: phi its
+// LinearBatchDeposits).
+template <class Target>
+void sweepBatchInto(const Medium& m, const std::vector<const Job*>& jobs, int r, Target phi, Tally& tally,
+                    float depositPerWeight) {
+    constexpr bool linear = std::is_same_v<Target, LinearBatchDeposits>;
     if (r < 1 || r > 16) throw Error("LPM", "rays per voxel must be in 1..16, got " + std::to_string(r));
     if (jobs.empty()) return;
     const Job& first = *jobs[0];
@@ -1584,10 +1622,13 @@ void sweepBatchInto(const Medium& m, const std::vector<const Job*>& jobs, int r,
             const int layer = sweeps[0]->layerAt(l);
             const bool any = planes.gather(layer, first);
             for (auto& sw : sweeps) sw->sweepLayer(layer, any);
-            if (any && linear && assign) planes.scatterLinear<true>(layer, depositPerWeight, phi, sca, src);
-            else if (any && linear) planes.scatterLinear(layer, depositPerWeight, phi, sca, src);
-            else if (any && assign) planes.scatter<true>(layer, depositPerWeight, phi, sca, src);
-            else if (any) planes.scatter(layer, depositPerWeight, phi, sca, src);
+            if constexpr (linear) {
+                if (any && assign) planes.scatterLinear<true>(layer, depositPerWeight, phi, sca, src);
+                else if (any) planes.scatterLinear(layer, depositPerWeight, phi, sca, src);
+            } else {
+                if (any && assign) planes.scatter<true>(layer, depositPerWeight, phi, sca, src);
+                else if (any) planes.scatter(layer, depositPerWeight, phi, sca, src);
+            }
         }
         assign = false;
         for (auto& sw : sweeps) sw->finish(tally);
@@ -1603,12 +1644,12 @@ void sweepBatchInto(const Medium& m, const std::vector<const Job*>& jobs, int r,
 
 void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
                     float depositPerWeight) {
-    sweepBatchInto(m, jobs, r, phi, tally, depositPerWeight, false);
+    sweepBatchInto(m, jobs, r, phi, tally, depositPerWeight);
 }
 
-void sweepStepLinearBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
-                          float depositPerWeight) {
-    sweepBatchInto(m, jobs, r, phi, tally, depositPerWeight, true);
+void sweepStepLinearBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, LinearBatchDeposits out,
+                          Tally& tally, float depositPerWeight) {
+    sweepBatchInto(m, jobs, r, out, tally, depositPerWeight);
 }
 
 }  // namespace lpm

@@ -103,12 +103,24 @@ void sweepStepLinearGroup(const Medium& m, const std::vector<const Job*>& jobs, 
 void sweepStepBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
                     float depositPerWeight);
 
+/// Where a linear-source batch writes its sums: with `whole`, all 4 moments there
+/// ([stored voxel][mean, x, y, z][rgb], float); else the mean [stored voxel][rgb] in float
+/// and the first moments [stored voxel][x, y, z][rgb] rounded to bfloat16 (core/bf16.h;
+/// 18 B a voxel instead of 36: docs/performance.md, "Session 43").
+struct LinearBatchDeposits {
+    float* whole = nullptr;
+    float* mean = nullptr;
+    Bf16* slopes = nullptr;
+};
+
 /// sweepStepBatch for the linear source's kernel (jobs of one sweep axis and one float
-/// source, sameLinearPlanes): phi [stored voxel][mean, x, y, z][rgb] = depositPerWeight *
-/// sum_j weight_j Phi_j (sweepStepLinear's deposits; float rounding differs), assigned
-/// over the block's stored voxels; the tally sums the jobs'.
-void sweepStepLinearBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, float* phi, Tally& tally,
-                          float depositPerWeight);
+/// source, sameLinearPlanes): out = depositPerWeight * sum_j weight_j Phi_j
+/// (sweepStepLinear's deposits [mean, x, y, z][rgb]; float rounding differs, and without
+/// `whole` each first moment is rounded once to bfloat16 when the batch holds one sign, as
+/// sweepBatches' batches do), assigned over the block's stored voxels; the tally sums the
+/// jobs'.
+void sweepStepLinearBatch(const Medium& m, const std::vector<const Job*>& jobs, int r, LinearBatchDeposits out,
+                          Tally& tally, float depositPerWeight);
 
 /// Whether two jobs sweep the same planes (one sweep axis, one voxel-constant source:
 /// src, srcStride, srcScale), so a batch or a group can gather them once for both.
