@@ -6,8 +6,9 @@
 #   scripts/bench/scale.sh [--quick] [--large] [--mantaflow] [--threads N] [--original PATH-TO-AN-OLDER-lpmbake]
 # --large adds the 8M cloud (g = 0 and g = 0.6) and the 50M-active-voxel cloud in a
 # 1024^3 box (about 12 minutes and 9 GB here). --mantaflow adds the ~1M-active-voxel Mantaflow smoke (Blender,
-# headless, resolution 224, frame 60: about 12 minutes to simulate once, then kept).
-# --only NAME runs that scene alone.
+# headless, resolution 224, frame 60: about 12 minutes to simulate once, then kept), baked
+# at density scales 25 and 150 (the second thick enough for the linear source).
+# --only NAME runs that scene alone (a scene that bakes another's volume needs that one's file).
 # Prints a markdown table; volumes and bakes go to out/bench/scale/.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -42,6 +43,8 @@ if [ "$quick" = 0 ]; then
 fi
 if [ "$mantaflow" = 1 ]; then
   scenes+=("smoke-1M-mantaflow|mantaflow --res 224 --end 60|--albedo 0.9 --density-scale 25 --up-axis z")
+  # The same smoke thick enough for the linear source (voxels up to optical depth 2.66).
+  scenes+=("smoke-1M-mantaflow-thick|same smoke-1M-mantaflow|--albedo 0.9 --density-scale 150 --up-axis z")
 fi
 if [ "$large" = 1 ]; then
   scenes+=("cloud-8M|cloud --res 322|--albedo 0.9 --density-scale 0.04")
@@ -58,6 +61,7 @@ for line in "${scenes[@]}"; do
   [ -n "$only" ] && [ "$name" != "$only" ] && continue
   vdb="$dir/$name.vdb"
   kind=${gen%% *}; opts=${gen#* }
+  [ "$kind" = same ] && vdb="$dir/$opts.vdb"  # another scene's volume, baked with other settings
   if [ ! -f "$vdb" ] && [ "$kind" = mantaflow ]; then
     # shellcheck disable=SC2086
     bash scripts/volumes/make_blender_smoke.sh "$dir/$name.frames" $opts >&2

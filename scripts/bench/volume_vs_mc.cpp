@@ -13,7 +13,7 @@
 // before raysHigherOrders and the coarse grid's earlier GMRES), full-sources (the two-grid
 // solve's fine sources held in full, bins per voxel, not separably), full-tail (the coarse
 // solve iterated to its tolerance, no geometric tail), constant / linear (the source inside
-// a voxel, instead of the planner's choice).
+// a voxel, instead of the planner's choice), tight (a tenth of the default stop tolerance).
 #include <sys/resource.h>
 
 #include <cstdio>
@@ -60,6 +60,7 @@ LpmSettings settingsNamed(const std::string& name) {
     else if (name == "full-tail") s.coarseTailExtrapolation = false;
     else if (name == "constant") s.linearSource = 0;  // the voxel-constant (step) source everywhere
     else if (name == "linear") s.linearSource = 1;
+    else if (name == "tight") s.tolerance = 1e-4;  // a tenth of the default stop tolerance
     else if (name != "default") {
         std::fprintf(stderr, "unknown setting '%s'\n", name.c_str());
         std::exit(2);
