@@ -68,16 +68,18 @@ LpmSettings settingsNamed(const std::string& name) {
     return s;
 }
 
+int usage() {
+    std::fprintf(stderr,
+                 "usage: lpm_bench_volume IN.vdb [--env SKY] [--sun X,Y,Z] [--albedo A] [--g G] "
+                 "[--density-scale S] [--samples N] [--voxels K] [--threads T] [--settings a,b]\n");
+    return 2;
+}
+
 }  // namespace
 
-int main(int argc, char** argv) {
-    keepFreedBuffersForReuse();  // as lpmbake does
-    if (argc < 2) {
-        std::fprintf(stderr,
-                     "usage: lpm_bench_volume IN.vdb [--env SKY] [--sun X,Y,Z] [--albedo A] [--g G] "
-                     "[--density-scale S] [--samples N] [--voxels K] [--threads T] [--settings a,b]\n");
-        return 2;
-    }
+namespace {
+
+int run(int argc, char** argv) {
     std::string env, sun, list = "full,default";
     double albedo = 0.9, g = 0.0, densityScale = 1.0;
     int samples = 20000, voxels = 48, threads = 0;
@@ -92,7 +94,7 @@ int main(int argc, char** argv) {
         else if (k == "--voxels") voxels = std::atoi(v.c_str());
         else if (k == "--threads") threads = std::atoi(v.c_str());
         else if (k == "--settings") list = v;
-        else return 2;
+        else return usage();
     }
     ThreadLimit limit(threads);
     initOpenVdb();
@@ -135,4 +137,17 @@ int main(int argc, char** argv) {
         std::fflush(stdout);
     }
     return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    keepFreedBuffersForReuse();  // as lpmbake does
+    if (argc < 2 || argv[1][0] == '-') return usage();
+    try {
+        return run(argc, argv);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "lpm_bench_volume: %s\n", e.what());
+        return 1;
+    }
 }

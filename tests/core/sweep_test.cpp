@@ -102,23 +102,28 @@ Job makeJob(const Vec3& w, const std::vector<float>* src, double o) {
     return j;
 }
 
-/// Every direction of `dirs` at each ray density of `rs`, without and with the source
-/// `src` (lattice offsets offset0 + k step, k the case): the kernel against the reference.
-/// Returns the number of cases.
-int expectMatchesReference(const Medium& m, const std::vector<Vec3>& dirs, std::initializer_list<int> rs,
-                           const std::vector<float>& src, double offset0, double step) {
+/// check(r, w, kind, offset) for every ray density of `rs`, direction of `dirs` and source
+/// kind 0..kinds-1, case k at lattice offset offset0 + k step (mod 1). Returns the number
+/// of cases.
+template <class Check>
+int forEachCase(std::initializer_list<int> rs, const std::vector<Vec3>& dirs, int kinds, double offset0, double step,
+                Check&& check) {
     int cases = 0;
     for (int r : rs)
         for (const Vec3& w : dirs)
-            for (bool withSrc : {false, true}) {
-                const Job job = makeJob(w, withSrc ? &src : nullptr, std::fmod(offset0 + step * cases, 1.0));
-                const Compare c = compareKernels(m, job, r);
-                EXPECT_LT(c.maxRel, 2e-5)
-                    << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r << " src " << withSrc;
-                EXPECT_LT(c.tallyRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r;
-                ++cases;
-            }
+            for (int kind = 0; kind < kinds; ++kind) check(r, w, kind, std::fmod(offset0 + step * cases++, 1.0));
     return cases;
+}
+
+/// Every direction of `dirs` at each ray density of `rs`, without and with the source
+/// `src`: the kernel against the reference. Returns the number of cases.
+int expectMatchesReference(const Medium& m, const std::vector<Vec3>& dirs, std::initializer_list<int> rs,
+                           const std::vector<float>& src, double offset0, double step) {
+    return forEachCase(rs, dirs, 2, offset0, step, [&](int r, const Vec3& w, int withSrc, double offset) {
+        const Compare c = compareKernels(m, makeJob(w, withSrc ? &src : nullptr, offset), r);
+        EXPECT_LT(c.maxRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r << " src " << withSrc;
+        EXPECT_LT(c.tallyRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r;
+    });
 }
 
 }  // namespace
@@ -610,25 +615,21 @@ LinearCompare compareLinearKernels(const Medium& m, const Job& job, int r) {
 /// number of cases.
 int expectLinearMatchesReference(const Medium& m, const std::vector<Vec3>& dirs, std::initializer_list<int> rs,
                                  const std::vector<float>& src12, double offset0, double step) {
-    int cases = 0;
-    for (int r : rs)
-        for (const Vec3& w : dirs)
-            for (int kind : {0, 1, 2}) {  // no source, linear, constant
-                Job job = makeJob(w, nullptr, std::fmod(offset0 + step * cases, 1.0));
-                if (kind > 0) {
-                    job.src = src12.data();
-                    job.srcStride = 12;
-                    job.srcScale = RGB(0.8f, 0.7f, 0.6f);
-                    job.srcLinear = kind == 1;
-                }
-                const LinearCompare c = compareLinearKernels(m, job, r);
-                for (int k = 0; k < 4; ++k)  // measured at most 5e-7 (mean), 7e-6 (slopes)
-                    EXPECT_LT(c.maxRel[k], k == 0 ? 2e-5 : 5e-5) << "moment " << k << " w = " << w.x << "," << w.y
-                                                                 << "," << w.z << " r = " << r << " source " << kind;
-                EXPECT_LT(c.tallyRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r;
-                ++cases;
-            }
-    return cases;
+    // kinds: no source, linear, constant
+    return forEachCase(rs, dirs, 3, offset0, step, [&](int r, const Vec3& w, int kind, double offset) {
+        Job job = makeJob(w, nullptr, offset);
+        if (kind > 0) {
+            job.src = src12.data();
+            job.srcStride = 12;
+            job.srcScale = RGB(0.8f, 0.7f, 0.6f);
+            job.srcLinear = kind == 1;
+        }
+        const LinearCompare c = compareLinearKernels(m, job, r);
+        for (int k = 0; k < 4; ++k)  // measured at most 5e-7 (mean), 7e-6 (slopes)
+            EXPECT_LT(c.maxRel[k], k == 0 ? 2e-5 : 5e-5)
+                << "moment " << k << " w = " << w.x << "," << w.y << "," << w.z << " r = " << r << " source " << kind;
+        EXPECT_LT(c.tallyRel, 2e-5) << "w = " << w.x << "," << w.y << "," << w.z << " r = " << r;
+    });
 }
 
 }  // namespace
