@@ -3,7 +3,7 @@
 // sampled uniformly among those with density (the same MC estimates for every setting).
 // Prints a markdown table (docs/performance.md).
 //   lpm_bench_volume IN.vdb [--env SKY] [--sun DX,DY,DZ] [--albedo A] [--g G] [--density-scale S]
-//                    [--samples N] [--voxels K] [--threads T] [--settings default,full,...]
+//                    [--up-axis y|z (the sky's, as lpmbake's)] [--samples N] [--voxels K] [--threads T] [--settings default,full,...]
 // Settings: default (what the planner picks), full (every order at full resolution),
 // two-grid (multi-resolution forced on),
 // after2 (two full-resolution passes before the coarse grid), coarse-n4 (the coarse grid
@@ -71,7 +71,7 @@ LpmSettings settingsNamed(const std::string& name) {
 int usage() {
     std::fprintf(stderr,
                  "usage: lpm_bench_volume IN.vdb [--env SKY] [--sun X,Y,Z] [--albedo A] [--g G] "
-                 "[--density-scale S] [--samples N] [--voxels K] [--threads T] [--settings a,b]\n");
+                 "[--density-scale S] [--up-axis y|z] [--samples N] [--voxels K] [--threads T] [--settings a,b]\n");
     return 2;
 }
 
@@ -80,7 +80,7 @@ int usage() {
 namespace {
 
 int run(int argc, char** argv) {
-    std::string env, sun, list = "full,default";
+    std::string env, sun, list = "full,default", upAxis = "y";
     double albedo = 0.9, g = 0.0, densityScale = 1.0;
     int samples = 20000, voxels = 48, threads = 0;
     for (int i = 2; i + 1 < argc; i += 2) {
@@ -94,6 +94,7 @@ int run(int argc, char** argv) {
         else if (k == "--voxels") voxels = std::atoi(v.c_str());
         else if (k == "--threads") threads = std::atoi(v.c_str());
         else if (k == "--settings") list = v;
+        else if (k == "--up-axis" && (v == "y" || v == "z")) upAxis = v;
         else return usage();
     }
     ThreadLimit limit(threads);
@@ -110,6 +111,7 @@ int run(int argc, char** argv) {
     if (!env.empty()) {
         EnvReadOptions eo;
         eo.path = env;
+        eo.up = upAxis == "z" ? UpAxis::Z : UpAxis::Y;
         envIn = readEnvironment(eo);
         lights.env = envIn.env.get();
     }
