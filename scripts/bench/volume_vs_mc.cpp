@@ -3,7 +3,8 @@
 // sampled uniformly among those with density (the same MC estimates for every setting).
 // Prints a markdown table (docs/performance.md).
 //   lpm_bench_volume IN.vdb [--env SKY] [--sun DX,DY,DZ] [--albedo A] [--g G] [--density-scale S]
-//                    [--up-axis y|z (the sky's, as lpmbake's)] [--samples N] [--voxels K] [--threads T] [--settings default,full,...]
+//                    [--up-axis y|z (the sky's, as lpmbake's)] [--samples N] [--voxels K]
+//                    [--threads T] [--settings default,full,...]
 // Settings: default (what the planner picks), full (every order at full resolution),
 // two-grid (multi-resolution forced on),
 // after2 (two full-resolution passes before the coarse grid), coarse-n4 (the coarse grid
