@@ -307,9 +307,9 @@ void PassRunner::runIsotropic(const std::vector<Job>& jobs, int r, Tally& total,
 // batches are swept all at once or, as here, a round of as many as there are threads at
 // a time: threads buffers instead of one per batch (6 on a scene with sources, 12 on the
 // light pass), each 30 B a voxel: the mean in float, the first moments in bfloat16
-// (docs/performance.md, "Session 43"; 48 B in float after keepFirstMomentsInFloat). The fold is foldDeposits' for one
-// bin: the mean as it is, the slopes from the first moments times 12 (Int xi_k^2 = 1/12) in the voxels that keep
-// slopes, band 0 from the mean.
+// (docs/performance.md, "Session 43"; 48 B in float after keepFirstMomentsInFloat). The
+// fold is foldDeposits' for one bin: the mean as it is, the slopes from the first moments
+// times 12 (Int xi_k^2 = 1/12) in the voxels that keep slopes, band 0 from the mean.
 void PassRunner::runIsotropicLinear(const std::vector<Job>& jobs, int r, Tally& total, bool depositSh,
                                     std::vector<float>& out) const {
     const size_t N = m_.voxelCount();

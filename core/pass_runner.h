@@ -51,7 +51,7 @@ public:
     void releaseBuffers() const;
 
     /// From now on the linear source's isotropic passes keep their batches' first moments in
-    /// float (36 B a voxel more per thread) instead of rounding them to bfloat16: for GMRES,
+    /// float (18 B a voxel more per thread) instead of rounding them to bfloat16: for GMRES,
     /// whose Krylov space needs the pass to be a linear operator (source iteration damps a
     /// rounding; a Krylov basis would carry it).
     void keepFirstMomentsInFloat() const { exactFirstMoments_ = true; }
