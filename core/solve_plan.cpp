@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 
 #include "core/env_binning.h"
@@ -245,12 +246,14 @@ void planCost(const SceneSummary& scene, const LpmSettings& s, int threads, Solv
     plan.predictedSecondsPerFinePass = plan.predictedSegmentsPerFinePass / rate;
     const double unshotBytes =
         plan.separableSource ? 2 * N * (1 + nb / 8.0) * 3 * sizeof(float) : 2 * N * nb * M * 3 * sizeof(float);
-    // Deposit buffers: the isotropic fold's batches (the linear source's: one a thread), 8
-    // directions of the general fold (and what it streams), or 4 and the bin's source with
-    // separable sources.
-    const double isotropicBuffers = M == 4 ? double(std::max(1, threads)) : 6.0;
+    // Deposit buffers: the isotropic fold's batches (the linear source's: one a thread, 30 B
+    // a voxel with its first moments in bfloat16), 8 directions of the general fold (and
+    // what it streams), or 4 and the bin's source with separable sources.
+    const double linearBatchBytes = N * (3 * sizeof(float) + 9 * sizeof(std::uint16_t));
     const double foldBytes =
-        (isotropicFold ? isotropicBuffers : (plan.separableSource ? 5.0 : 16.0)) * N * 3 * M * sizeof(float);
+        isotropicFold && M == 4
+            ? double(std::max(1, threads)) * linearBatchBytes
+            : (isotropicFold ? 6.0 : (plan.separableSource ? 5.0 : 16.0)) * N * 3 * M * sizeof(float);
     const double shBytes = N * nc * 3 * sizeof(float);
     plan.predictedBytes = unshotBytes + foldBytes + shBytes + N * sizeof(float) * (scene.emission ? 4 : 1);
     const double lightSweeps =
