@@ -250,10 +250,9 @@ void planCost(const SceneSummary& scene, const LpmSettings& s, int threads, Solv
     // a voxel with its first moments in bfloat16), 8 directions of the general fold (and
     // what it streams), or 4 and the bin's source with separable sources.
     const double linearBatchBytes = N * (3 * sizeof(float) + 9 * sizeof(std::uint16_t));
-    const double foldBytes =
-        isotropicFold && M == 4
-            ? double(std::max(1, threads)) * linearBatchBytes
-            : (isotropicFold ? 6.0 : (plan.separableSource ? 5.0 : 16.0)) * N * 3 * M * sizeof(float);
+    const double floatBuffers = isotropicFold ? 6.0 : (plan.separableSource ? 5.0 : 16.0);
+    const double foldBytes = isotropicFold && M == 4 ? double(std::max(1, threads)) * linearBatchBytes
+                                                     : floatBuffers * N * 3 * M * sizeof(float);
     const double shBytes = N * nc * 3 * sizeof(float);
     plan.predictedBytes = unshotBytes + foldBytes + shBytes + N * sizeof(float) * (scene.emission ? 4 : 1);
     const double lightSweeps =
