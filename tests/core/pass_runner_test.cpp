@@ -77,10 +77,11 @@ TEST(PassRunner, IsotropicFoldEqualsGeneralFold) {
 // against its general fold (a deposit buffer per direction): the next source's means and
 // slopes, band 0 and the tallies. With first moments in float (as under GMRES) everything
 // agrees to float rounding; with them in bfloat16 the means and the tallies still do, band
-// 0 within what the first pass's rounded slopes can move in the second, and the slopes lie within the rounding of each
-// batch's first moments: 2^-8 of a stored value at most, so at most 2^-8 of the sum of the batches' magnitudes per
-// value (bounded by G x 2^-8 of the largest slope, G the batches) and about 2^-10 of the slopes' L1 norm (errors of
-// either sign, a quarter of an ulp on average).
+// 0 within what the first pass's rounded slopes can move in the second, and the slopes
+// within the rounding of each batch's first moments: 2^-8 of a stored value at most, so
+// at most 2^-8 of the sum of the batches' magnitudes per value (bounded by G x 2^-8 of the
+// largest slope, G the batches) and about 2^-10 of the slopes' L1 norm (errors of either
+// sign, a quarter of an ulp on average; the test allows 2^-9).
 TEST(PassRunner, IsotropicLinearFoldEqualsGeneralFold) {
     Medium m = makeVolume(VolumeKind::Cloud, 12, 3.0);
     const PassOutput general = runSkyPasses(m, 4, 4);
