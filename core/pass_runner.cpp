@@ -123,6 +123,18 @@ void PassRunner::releaseBuffers() const {
     bf16Buffers_ = std::vector<std::vector<Bf16>>();
 }
 
+void PassRunner::keepFirstMomentsInFloat() const {
+    exactFirstMoments_ = true;
+    bf16Buffers_ = std::vector<std::vector<Bf16>>();
+}
+
+size_t PassRunner::heldBufferBytes() const {
+    size_t bytes = 0;
+    for (const auto& b : buffers_) bytes += b.capacity() * sizeof(float);
+    for (const auto& b : bf16Buffers_) bytes += b.capacity() * sizeof(Bf16);
+    return bytes;
+}
+
 template <class T>
 std::vector<std::vector<T>>& PassRunner::buffersOf() const {
     if constexpr (std::is_same_v<T, float>) return buffers_;

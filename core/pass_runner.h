@@ -53,8 +53,12 @@ public:
     /// From now on the linear source's isotropic passes keep their batches' first moments in
     /// float (18 B a voxel more per thread) instead of rounding them to bfloat16: for GMRES,
     /// whose Krylov space needs the pass to be a linear operator (source iteration damps a
-    /// rounding; a Krylov basis would carry it).
-    void keepFirstMomentsInFloat() const { exactFirstMoments_ = true; }
+    /// rounding; a Krylov basis would carry it). Frees the bfloat16 buffers, which the
+    /// float ones replace.
+    void keepFirstMomentsInFloat() const;
+
+    /// Bytes of the deposit buffers kept from pass to pass (their capacity).
+    size_t heldBufferBytes() const;
 
     /// Folds one batch's deposits phi[j] ([voxel][moment][rgb]) of jobs[0..n).
     template <class T>

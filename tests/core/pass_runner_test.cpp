@@ -122,6 +122,33 @@ TEST(PassRunner, IsotropicLinearFoldEqualsGeneralFold) {
     }
 }
 
+// The linear source's isotropic fold holds one accumulator per thread (up to the batch
+// count): 30 B a voxel (mean in float, first moments in bfloat16); once GMRES asks for
+// float first moments the bfloat16 buffers are freed, and then 48 B a voxel.
+TEST(PassRunner, LinearFoldHoldsOnlyItsAccumulators) {
+    const Medium m = makeVolume(VolumeKind::Cloud, 12, 3.0);
+    LpmCache cache;
+    const CubeQuadrature quad(4);
+    const auto ff = cache.formFactors(4, 0, 0.0);
+    const JobFactory factory(quad, *ff, m.localToWorld, m.voxelVolume(), 1, 0.0);
+    const std::vector<RGB> sky(quad.count(), RGB(1.0f));
+    const std::vector<Job> jobs = factory.lightJobs(m, sky, true, {});
+    const size_t N = m.voxelCount();
+    std::vector<float> sh(N * 3, 0.0f), out(N * 12, 0.0f);
+    const PassRunner runner(m, FoldShape{1, 4, 1}, {}, sh);
+    Tally tally;
+    runner.run(jobs, 2, tally, true, out);
+    const size_t rounded = runner.heldBufferBytes(), threads = rounded / (N * 30);
+    ASSERT_GE(threads, 1u);
+    EXPECT_EQ(rounded, threads * N * 30);
+    runner.keepFirstMomentsInFloat();
+    EXPECT_EQ(runner.heldBufferBytes(), threads * N * 12);  // only the means' buffers left
+    runner.run(jobs, 2, tally, true, out);
+    EXPECT_EQ(runner.heldBufferBytes(), threads * N * 48);
+    runner.releaseBuffers();
+    EXPECT_EQ(runner.heldBufferBytes(), 0u);
+}
+
 TEST(PassRunner, BatchesPartitionJobsByAxisAndSource) {
     const CubeQuadrature quad(4);
     LpmCache cache;
