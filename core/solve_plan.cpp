@@ -22,6 +22,10 @@ std::string format(const char* fmt, double a = 0, double b = 0, double c = 0, do
     return buf;
 }
 
+/// Issue 9's memory line (target 5): 300 B a written voxel + 200 MiB.
+constexpr double kMemoryLinePerVoxel = 300;
+constexpr double kMemoryLineBase = 200.0 * 1024 * 1024;
+
 std::string dims(int k) { return std::to_string(k) + "x" + std::to_string(k) + "x" + std::to_string(k); }
 
 /// Mean ray segments a ray makes per voxel slice it crosses, over the directions of an
@@ -110,12 +114,33 @@ void planAngular(const SceneSummary& scene, const LpmSettings& s, SolvePlan& pla
                                                                      format("g = %.4g", plan.gPropagation)});
 }
 
+/// With unshot bins (g != 0) a linear source holds 4 moments in every bin of its two fine
+/// sources (it has no separable form): 2 x bins x 48 B a stored voxel, 3.3 GiB on a 1M
+/// plume at g = 0.6, with about 10x the constant source's time, for the same image
+/// (docs/performance.md, "Session 44"). Returns why the auto choice keeps the constant
+/// source (those sources over the memory line of issue 9's target 5, 300 B a written voxel
+/// + 200 MiB), or "" where the linear source fits.
+std::string linearSourceTooLarge(const SceneSummary& scene, const SolvePlan& plan) {
+    const double bins = plan.binsPerFace == 0 ? 1 : 6.0 * plan.binsPerFace * plan.binsPerFace;
+    const double N = double(scene.storedVoxels), wanted = double(scene.wantedVoxels ? scene.wantedVoxels : N);
+    const double sourceBytes = 2 * N * bins * 4 * 3 * sizeof(float);
+    const double line = kMemoryLinePerVoxel * wanted + kMemoryLineBase;
+    if (bins == 1 || sourceBytes <= line) return "";
+    constexpr double MiB = 1024.0 * 1024.0;
+    return format(", but a linear source would hold 4 moments in each of %.0f unshot bins: %.0f MiB of sources over "
+                  "the memory line of %.0f MiB (300 B a written voxel + 200 MiB), at about 10x the time (--source "
+                  "linear forces it)",
+                  bins, sourceBytes / MiB, line / MiB);
+}
+
 /// Source shape inside a voxel. A voxel-constant (step) source leaks light across
 /// optically thick voxels (it is carried to the exit face undamped); a linear source with
 /// deposited first moments follows the decay inside the voxel (docs/lpm_solver.md).
 void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
     const double tau = scene.maxVoxelTau;
     plan.linearSource = s.linearSource == 1 || (s.linearSource < 0 && tau > s.linearSourceAbove);
+    const std::string tooLarge = s.linearSource < 0 && plan.linearSource ? linearSourceTooLarge(scene, plan) : "";
+    if (!tooLarge.empty()) plan.linearSource = false;
     const char* shape = plan.linearSource ? "linear source inside voxels" : "voxel-constant source inside voxels";
     // The fine plan names the linear source's price (docs/performance.md, "Session 42")
     // and the way around it.
@@ -124,10 +149,11 @@ void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan&
                               "accurate in the thick voxels)"
                             : "";
     if (s.linearSource < 0)
-        plan.decisions.push_back({shape, format(plan.linearSource ? "largest voxel optical depth %.3g > %.3g"
-                                                                  : "largest voxel optical depth %.3g <= %.3g",
-                                                tau, s.linearSourceAbove) +
-                                             price});
+        plan.decisions.push_back(
+            {shape, format(tau > s.linearSourceAbove ? "largest voxel optical depth %.3g > %.3g"
+                                                     : "largest voxel optical depth %.3g <= %.3g",
+                           tau, s.linearSourceAbove) +
+                        price + tooLarge});
     else plan.decisions.push_back({std::string(shape) + " (requested)", ""});
     const double leakAbove = plan.linearSource ? s.linearSourceVoxelCap : 2.0;
     if (tau > leakAbove)

@@ -125,6 +125,35 @@ TEST(SolvePlan, ThickVoxelsGetTheLinearSourceAndAWarning) {
     EXPECT_FALSE(planSolve(sc, forced, 2).linearSource);
 }
 
+// With unshot bins the linear source holds 4 moments in every bin (2 x 24 x 48 B a stored
+// voxel): the auto choice keeps it while that fits the memory line (300 B a written voxel
+// + 200 MiB), keeps the constant source above it and says why (with the leak warning),
+// and --source linear still forces it. One isotropic bin (g = 0) holds 96 B: no limit.
+TEST(SolvePlan, LinearSourceWithBinsOnlyUnderTheMemoryLine) {
+    SceneSummary sc = smallScene();
+    sc.g = 0.6;
+    sc.maxVoxelTau = 3.5;
+    EXPECT_TRUE(planSolve(sc, LpmSettings{}, 2).linearSource) << "32^3: 72 MiB of sources";
+    sc.dims[0] = sc.dims[1] = sc.dims[2] = 100;
+    sc.storedVoxels = 1000000;
+    const SolvePlan large = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_FALSE(large.linearSource);
+    EXPECT_TRUE(large.separableSource);
+    EXPECT_TRUE(says(large, "voxel-constant source inside voxels: largest voxel optical depth"));
+    EXPECT_TRUE(says(large, "4 moments in each of 24 unshot bins: 2197 MiB of sources over the memory line of 486 MiB"));
+    EXPECT_TRUE(says(large, "light leaks through them"));
+    EXPECT_LT(large.predictedBytes, 300.0 * 1e6 + 200.0 * 1024 * 1024);
+    LpmSettings forced;
+    forced.linearSource = 1;
+    const SolvePlan linear = planSolve(sc, forced, 2);
+    EXPECT_TRUE(linear.linearSource);
+    EXPECT_GT(linear.predictedBytes, 8 * large.predictedBytes);
+    sc.wantedVoxels = 100000;  // the line counts the voxels written
+    EXPECT_TRUE(says(planSolve(sc, LpmSettings{}, 2), "over the memory line of 229 MiB"));
+    sc.g = 0.0;
+    EXPECT_TRUE(planSolve(sc, LpmSettings{}, 2).linearSource) << "one isotropic bin";
+}
+
 TEST(SolvePlan, DeltaMOnlyForwardAndGrey) {
     SceneSummary sc = smallScene();
     sc.g = 0.8;
@@ -193,7 +222,8 @@ TEST(SolvePlan, SeparableFineSourcesWithBinsOnTheTwoGridSolve) {
     EXPECT_FALSE(askedSmall.separableSource);
     EXPECT_TRUE(says(askedSmall, "full fine sources (separable requested): no two-grid solve"));
     sc.g = 0.6;
-    sc.maxVoxelTau = 5;  // linear source
+    sc.maxVoxelTau = 5;
+    asked.linearSource = 1;  // at 64^3 the auto choice keeps the constant source (its bins' memory)
     const SolvePlan thick = planSolve(sc, asked, 2);
     EXPECT_TRUE(thick.linearSource);
     EXPECT_FALSE(thick.separableSource);
