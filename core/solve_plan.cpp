@@ -116,7 +116,7 @@ void planAngular(const SceneSummary& scene, const LpmSettings& s, SolvePlan& pla
 
 /// With unshot bins (g != 0) a linear source holds 4 moments in every bin of its two fine
 /// sources (it has no separable form): 2 x bins x 48 B a stored voxel, 3.3 GiB on a 1M
-/// plume at g = 0.6, with about 10x the constant source's time, for the same image
+/// plume at g = 0.6, with 6-10x the constant source's time, for the same image
 /// (docs/performance.md, "Session 44"). Returns why the auto choice keeps the constant
 /// source (those sources over the memory line of issue 9's target 5, 300 B a written voxel
 /// + 200 MiB), or "" where the linear source fits.
@@ -127,10 +127,11 @@ std::string linearSourceTooLarge(const SceneSummary& scene, const SolvePlan& pla
     const double line = kMemoryLinePerVoxel * wanted + kMemoryLineBase;
     if (bins == 1 || sourceBytes <= line) return "";
     constexpr double MiB = 1024.0 * 1024.0;
-    return format(", but a linear source would hold 4 moments in each of %.0f unshot bins: %.0f MiB of sources over "
-                  "the memory line of %.0f MiB (300 B a written voxel + 200 MiB), at about 10x the time (--source "
-                  "linear forces it)",
-                  bins, sourceBytes / MiB, line / MiB);
+    return format(
+        ", but a linear source would hold 4 moments in each of %.0f unshot bins: %.0f MiB of sources over "
+        "the memory line of %.0f MiB (300 B a written voxel + 200 MiB), at 6-10x the time (--source "
+        "linear forces it)",
+        bins, sourceBytes / MiB, line / MiB);
 }
 
 /// Source shape inside a voxel. A voxel-constant (step) source leaks light across
@@ -149,11 +150,10 @@ void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan&
                               "accurate in the thick voxels)"
                             : "";
     if (s.linearSource < 0)
-        plan.decisions.push_back(
-            {shape, format(tau > s.linearSourceAbove ? "largest voxel optical depth %.3g > %.3g"
-                                                     : "largest voxel optical depth %.3g <= %.3g",
-                           tau, s.linearSourceAbove) +
-                        price + tooLarge});
+        plan.decisions.push_back({shape, format(tau > s.linearSourceAbove ? "largest voxel optical depth %.3g > %.3g"
+                                                                          : "largest voxel optical depth %.3g <= %.3g",
+                                                tau, s.linearSourceAbove) +
+                                             price + tooLarge});
     else plan.decisions.push_back({std::string(shape) + " (requested)", ""});
     const double leakAbove = plan.linearSource ? s.linearSourceVoxelCap : 2.0;
     if (tau > leakAbove)

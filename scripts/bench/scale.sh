@@ -7,7 +7,7 @@
 # --large adds the 8M cloud (g = 0 and g = 0.6) and the 50M-active-voxel cloud in a
 # 1024^3 box (about 12 minutes and 9 GB here). --mantaflow adds the ~1M-active-voxel Mantaflow smoke (Blender,
 # headless, resolution 224, frame 60: about 12 minutes to simulate once, then kept), baked
-# at density scales 25 and 150 (the second thick enough for the linear source).
+# at density scales 25 and 150 (the second thick enough for the linear source), the thick one also at g = 0.6.
 # --only NAME runs that scene alone (a scene that bakes another's volume needs that one's file).
 # Prints a markdown table; volumes and bakes go to out/bench/scale/.
 set -euo pipefail
@@ -45,6 +45,9 @@ if [ "$mantaflow" = 1 ]; then
   scenes+=("smoke-1M-mantaflow|mantaflow --res 224 --end 60|--albedo 0.9 --density-scale 25 --up-axis z")
   # The same smoke thick enough for the linear source (voxels up to optical depth 2.66).
   scenes+=("smoke-1M-mantaflow-thick|same smoke-1M-mantaflow|--albedo 0.9 --density-scale 150 --up-axis z")
+  # And at g = 0.6: 24 unshot bins, where the auto plan keeps the constant source over the
+  # memory line (docs/performance.md, "Session 44").
+  scenes+=("smoke-1M-mantaflow-thick-g0.6|same smoke-1M-mantaflow|--albedo 0.9 --density-scale 150 --up-axis z --g 0.6")
 fi
 if [ "$large" = 1 ]; then
   scenes+=("cloud-8M|cloud --res 322|--albedo 0.9 --density-scale 0.04")

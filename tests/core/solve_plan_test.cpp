@@ -140,7 +140,8 @@ TEST(SolvePlan, LinearSourceWithBinsOnlyUnderTheMemoryLine) {
     EXPECT_FALSE(large.linearSource);
     EXPECT_TRUE(large.separableSource);
     EXPECT_TRUE(says(large, "voxel-constant source inside voxels: largest voxel optical depth"));
-    EXPECT_TRUE(says(large, "4 moments in each of 24 unshot bins: 2197 MiB of sources over the memory line of 486 MiB"));
+    EXPECT_TRUE(
+        says(large, "4 moments in each of 24 unshot bins: 2197 MiB of sources over the memory line of 486 MiB"));
     EXPECT_TRUE(says(large, "light leaks through them"));
     EXPECT_LT(large.predictedBytes, 300.0 * 1e6 + 200.0 * 1024 * 1024);
     LpmSettings forced;
