@@ -386,8 +386,10 @@ LpmResult LpmSolve::run() {
     res_.residual = res_.input > 0 ? res_.unshot / res_.input : 0.0;
     char buf[200];
     std::snprintf(buf, sizeof buf, "%s after %d passes: residual %.3g (tolerance %.3g)",
-                  res_.converged ? "converged" : "stopped at the order cap", int(res_.passes.size()), res_.residual,
-                  s_.tolerance);
+                  res_.converged           ? "converged"
+                  : res_.stoppedAtCycleCap ? "stopped at the two-grid cycle cap"
+                                           : "stopped at the order cap",
+                  int(res_.passes.size()), res_.residual, s_.tolerance);
     res_.decisions.push_back(buf);
     res_.plan = plan_;
     res_.seconds = secondsSince(t0);

@@ -51,6 +51,9 @@ struct LpmResult {
     double unshot = 0;    ///< scattered power of the last pass, not propagated further
     double residual = 0;  ///< unshot / input
     bool converged = false;
+    /// Not converged because the two-grid solve ran its cycles out (core/two_grid.cpp),
+    /// not because of LpmSettings::maxOrders: more orders would not help.
+    bool stoppedAtCycleCap = false;
     int directionCount = 0, binCount = 0;
     std::uint64_t segments = 0;  ///< ray-segment updates performed
     double seconds = 0;

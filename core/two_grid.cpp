@@ -88,6 +88,7 @@ std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, con
 void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
                              double rPower, Clock::time_point start) {
     res_.converged = count.converged && std::fabs(rPower) <= s_.tolerance * res_.input;
+    res_.stoppedAtCycleCap = !res_.converged && cycles >= kMaxCycles && int(res_.passes.size()) < s_.maxOrders;
     char buf[300];
     std::snprintf(buf, sizeof buf,
                   "two-grid: coarse grid %dx%dx%d (%zu stored voxels) with %d directions per face, %d cycle(s) of "

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdlib>
 
 #include <sys/stat.h>
@@ -611,6 +612,30 @@ TEST(Cli, MultiresIsReportedAndRecorded) {
     expectOneLineError(
         runLpmbake({dataPath("vdb/torus01.vdb"), "-o", dir + "/x.vdb", "--sun", "0,1,0", "--multires", "maybe"}, dir),
         1, "usage", {"--multires", "maybe"});
+}
+
+// A bake that misses --tolerance warns, and says what would help: the two-grid solve's
+// cycles ran out (more orders would not help), or --max-orders did.
+TEST(Cli, UnconvergedBakeSaysWhichCapStoppedIt) {
+    const std::string dir = lpmtest::scratchDir();
+    // torusArgs' --tolerance 1e-2 -> 1e-4: out of reach of the two-grid cycle on the torus
+    // (voxels up to optical depth 40: it stops at residual 4.9%).
+    const auto strict = [](std::vector<std::string> a) {
+        *(std::find(a.begin(), a.end(), "--tolerance") + 1) = "1e-4";
+        return a;
+    };
+    auto cycles = strict(torusArgs(dir + "/cycles.vdb"));
+    cycles.insert(cycles.end(), {"--sun", "0.3,0.8,0.5", "--multires", "on"});
+    const auto rc = runLpmbake(cycles, dir);
+    ASSERT_EQ(rc.code, 0) << rc.err;
+    EXPECT_NE(rc.err.find("the two-grid solve ran its cycles out, so more orders would not help; --multires off"),
+              std::string::npos)
+        << rc.err;
+    auto orders = strict(torusArgs(dir + "/orders.vdb"));
+    orders.insert(orders.end(), {"--sun", "0.3,0.8,0.5", "--max-orders", "3"});
+    const auto ro = runLpmbake(orders, dir);
+    ASSERT_EQ(ro.code, 0) << ro.err;
+    EXPECT_NE(ro.err.find("above --tolerance 0.0001 (raise --max-orders)"), std::string::npos) << ro.err;
 }
 
 // At SH order >= 1 the solver holds SH rows only for the voxels the bake writes

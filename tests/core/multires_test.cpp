@@ -155,6 +155,32 @@ TEST(Multires, CoarseGeometricTailStaysWithinTheTolerance) {
     EXPECT_LT(rel, tail.tolerance);
 }
 
+// A solve that misses the tolerance says which cap stopped it: the two-grid cycle's count
+// (more orders would not help; the bake's warning says so) or LpmSettings::maxOrders.
+TEST(Multires, SaysWhetherTheCycleCapOrTheOrderCapStoppedIt) {
+    Case cs{"cloud g0 a0.9", VolumeKind::Cloud, 0.0, 0.9, 8.0};
+    Scene sc = makeScene(cs, 32);
+    sc.lights.env = &sc.sky;
+    LpmSettings strict;
+    strict.multires = 1;
+    strict.tolerance = 1e-9;  // below what the cycles' single-precision residual reaches
+    const LpmResult cycles = solveLpm(sc.medium, sc.lights, strict);
+    EXPECT_FALSE(cycles.converged);
+    EXPECT_TRUE(cycles.stoppedAtCycleCap);
+    EXPECT_TRUE(saidDecision(cycles, "stopped at the two-grid cycle cap after"));
+    EXPECT_LT(int(cycles.passes.size()), strict.maxOrders);
+    strict.maxOrders = 4;
+    const LpmResult orders = solveLpm(sc.medium, sc.lights, strict);
+    EXPECT_FALSE(orders.converged);
+    EXPECT_FALSE(orders.stoppedAtCycleCap);
+    EXPECT_TRUE(saidDecision(orders, "stopped at the order cap after"));
+    LpmSettings loose;
+    loose.multires = 1;
+    const LpmResult done = solveLpm(sc.medium, sc.lights, loose);
+    EXPECT_TRUE(done.converged);
+    EXPECT_FALSE(done.stoppedAtCycleCap);
+}
+
 // addCoarse adds (or, with scale -1, takes away) each fine voxel's coarse parent value to
 // the means, exactly as injectCoarse writes it, and leaves the slopes alone: the two-grid
 // cycle's E = r + tail and r' = K E - tail without a fine tail buffer.
