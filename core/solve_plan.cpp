@@ -129,9 +129,9 @@ std::string linearSourceTooLarge(const SceneSummary& scene, const SolvePlan& pla
     constexpr double MiB = 1024.0 * 1024.0;
     return format(
         ", but a linear source would hold 4 moments in each of %.0f unshot bins: %.0f MiB of sources over "
-        "the memory line of %.0f MiB (300 B a written voxel + 200 MiB), at 6-10x the time (--source "
+        "the memory line of %.0f MiB (%.0f B a written voxel + %.0f MiB), at 6-10x the time (--source "
         "linear forces it)",
-        bins, sourceBytes / MiB, line / MiB);
+        bins, sourceBytes / MiB, line / MiB, kMemoryLinePerVoxel, kMemoryLineBase / MiB);
 }
 
 /// Source shape inside a voxel. A voxel-constant (step) source leaks light across

@@ -76,10 +76,6 @@ int usage() {
     return 2;
 }
 
-}  // namespace
-
-namespace {
-
 int run(int argc, char** argv) {
     std::string env, sun, list = "full,default", upAxis = "y";
     double albedo = 0.9, g = 0.0, densityScale = 1.0;
