@@ -142,6 +142,27 @@ LpmResult bakeAtVoxels(const BakeFile& b, const json& ref, int order) {
 }
 
 /// The bake's SH against the reference at its voxels: RMS over voxels and channels of
+/// Band 0's error relative to each voxel's own reference value, RMS over the voxels and
+/// channels the reference resolves (its value at least twice its standard error and 1e-3
+/// of `scale`, the RMS of its band 0): deep, dim voxels weigh as much as lit ones
+/// (lpm_bench_volume's measure), with the same measure of the reference's noise.
+json voxelRelativeErrors(const LpmResult& r, const json& voxels, double scale) {
+    double err = 0, noise = 0, count = 0;
+    for (size_t i = 0; i < voxels.size(); ++i) {
+        const std::vector<double> mean = voxels[i]["mean"], se = voxels[i]["stderr"];
+        for (size_t ch = 0; ch < 3; ++ch) {
+            if (!(se[ch] > 0 && mean[ch] > 2.0 * se[ch] && mean[ch] > 1e-3 * scale)) continue;
+            const double d = (r.sh[i * size_t(r.coeffs) * 3 + ch] - mean[ch]) / mean[ch];
+            err += d * d;
+            noise += (se[ch] / mean[ch]) * (se[ch] / mean[ch]);
+            count += 1;
+        }
+    }
+    return {{"band0_voxel_rms", count > 0 ? std::sqrt(err / count) : 0.0},
+            {"band0_voxel_noise", count > 0 ? std::sqrt(noise / count) : 0.0},
+            {"band0_voxel_count", count}};
+}
+
 /// (bake - MC), relative to the RMS of the reference's band 0 (so voxels the reference sees
 /// as nearly dark cannot blow a ratio up), for band 0 and for bands 1..2, each with the
 /// same measure of the reference's standard errors and, for band 0, the error with that
@@ -164,6 +185,7 @@ json voxelErrors(const LpmResult& r, const json& voxels) {
                 {"band0_noise", std::sqrt(n0 / count) / scale},
                 {"band0_corrected", std::sqrt(std::max(0.0, d0 - n0) / count) / scale},
                 {"band0_bias", bias / count / scale}};
+    out.update(voxelRelativeErrors(r, voxels, scale));
     if (r.coeffs > 1) {
         out["band12_rms"] = std::sqrt(d12 / count) / scale;
         out["band12_noise"] = std::sqrt(n12 / count) / scale;
