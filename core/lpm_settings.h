@@ -38,27 +38,34 @@ struct LpmSettings {
                                           ///< geometrically and adds the rest as that series
                                           ///< (docs/multires.md, "Geometric tail"); so does a
                                           ///< solve on one grid, within a tenth of the tolerance
-    int linearSource = -1;                ///< -1 auto (on when a voxel is optically thicker than
-                                          ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
-                                          ///< inside each voxel (linear characteristics; 4x the unshot memory)
-    double linearSourceAbove = 2.0;       ///< auto threshold: largest per-voxel optical depth
-    double linearSourceVoxelCap = 8.0;    ///< voxels optically thicker than this keep a constant source
-    int deltaM = -1;                      ///< forward-peak truncation (delta-M, f = g^4): -1 auto (on when
-                                          ///< g > deltaMAbove and the albedo is grey), 0 off, 1 on (g > 0, grey albedo)
-    double deltaMAbove = 0.0;             ///< auto threshold on g (measured better for g = 0.5, 0.85, 0.9, 0.99)
-    double envHotShare = 0.01;            ///< environment pixels holding at least this share of its power
-                                          ///< (at most 16) are swept like suns, in their exact direction; 0 = off
-    int multires = -1;                    ///< higher orders on a 2x coarser grid: -1 auto (when the block stores
-                                          ///< at least multiresMinVoxels voxels), 0 off, 1 on
-    int multiresAfter = 1;                ///< passes at full resolution before the coarse grid takes over (>= 1)
-    int multiresMinVoxels = 1 << 16;      ///< auto threshold on stored voxels (2 x 32^3)
-    int multiresDirections = -1;          ///< directions per face on the coarse grid: -1 auto (n/2 when the
-                                          ///< bins still divide it and it is >= 2, else n)
-    int separableSource = -1;             ///< fine-grid sources of the two-grid solve held separably (each
-                                          ///< voxel's angular integral, its coarse parent's angular shape;
-                                          ///< core/separable_source.h): -1 auto (with unshot bins), 0 off, 1 on
-    int subdivide = 1;                    ///< solve on voxels split k x k x k (same medium), average back: for
-                                          ///< optically thick voxels, where a voxel-constant source leaks light
+    bool shapedCoarseTail = true;         ///< the two-grid cycle spreads its coarse tail over each coarse voxel's
+                                          ///< children by the first residual they hold, not flat
+                                          ///< (core/tail_shape.h)
+    /// Set by the two-grid cycle for its coarse solves: each pass's source is measured by
+    /// its absolute power (the residual they distribute changes sign between voxels, and a
+    /// signed sum would end them after a pass; docs/multires.md, "Shaped tail").
+    bool absoluteSourcePower = false;
+    int linearSource = -1;              ///< -1 auto (on when a voxel is optically thicker than
+                                        ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
+                                        ///< inside each voxel (linear characteristics; 4x the unshot memory)
+    double linearSourceAbove = 2.0;     ///< auto threshold: largest per-voxel optical depth
+    double linearSourceVoxelCap = 8.0;  ///< voxels optically thicker than this keep a constant source
+    int deltaM = -1;                    ///< forward-peak truncation (delta-M, f = g^4): -1 auto (on when
+                                        ///< g > deltaMAbove and the albedo is grey), 0 off, 1 on (g > 0, grey albedo)
+    double deltaMAbove = 0.0;           ///< auto threshold on g (measured better for g = 0.5, 0.85, 0.9, 0.99)
+    double envHotShare = 0.01;          ///< environment pixels holding at least this share of its power
+                                        ///< (at most 16) are swept like suns, in their exact direction; 0 = off
+    int multires = -1;                  ///< higher orders on a 2x coarser grid: -1 auto (when the block stores
+                                        ///< at least multiresMinVoxels voxels), 0 off, 1 on
+    int multiresAfter = 1;              ///< passes at full resolution before the coarse grid takes over (>= 1)
+    int multiresMinVoxels = 1 << 16;    ///< auto threshold on stored voxels (2 x 32^3)
+    int multiresDirections = -1;        ///< directions per face on the coarse grid: -1 auto (n/2 when the
+                                        ///< bins still divide it and it is >= 2, else n)
+    int separableSource = -1;           ///< fine-grid sources of the two-grid solve held separably (each
+                                        ///< voxel's angular integral, its coarse parent's angular shape;
+                                        ///< core/separable_source.h): -1 auto (with unshot bins), 0 off, 1 on
+    int subdivide = 1;                  ///< solve on voxels split k x k x k (same medium), average back: for
+                                        ///< optically thick voxels, where a voxel-constant source leaks light
     std::function<void(const std::string&)> progress;  ///< optional, called once per pass
     /// Also return each sun's beam transmittance (LpmResult::sunTerms) so its single
     /// scattering can be stored exactly beside the SH (core/sun_term.h); res.sh is unchanged.

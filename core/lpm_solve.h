@@ -49,13 +49,19 @@ private:
         int coarsePasses = 0;
         bool converged = true;
     };
+    /// A cycle's residual r' = K E - tail: its signed power (the stop test, as every pass's)
+    /// and its absolute power (the next coarse solve's tolerance; reported beside it).
+    struct Residual {
+        double power = 0, absolute = 0;
+    };
     void continueOnCoarse(int firstPass);
     void continueOnCoarseSeparable(int firstPass);
+    std::vector<float> tailShapeOf(const Medium& mc, const std::vector<float>& r) const;
     std::vector<float> coarseOrders(const Medium& mc, LpmSettings& cs, const SolvePlan& coarsePlan,
-                                    std::vector<float> uc, double rPower, int cycle, int& p, TwoGridCount& count,
+                                    std::vector<float> uc, double rAbsolute, int cycle, int& p, TwoGridCount& count,
                                     const MassRows* rows = nullptr);
-    void reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count, double rPower,
-                       Clock::time_point start);
+    void reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
+                       const Residual& r, bool shapedTail, Clock::time_point start);
     /// One fine pass with separable sources: of the light jobs (src null) or of `src`; its
     /// deposits fold into the SH result and sep_->next, less `takeFromNext` (a coarse part
     /// held as SeparableSource::offset; SeparableFold::finish) when given.
@@ -74,7 +80,8 @@ private:
     void addToSourceSum(const std::vector<float>& src, float scale = 1.0f);
     bool extrapolateTail(double last, double ratio);  ///< coarse continuation: the geometric tail
     void recordPass(int pass, const Tally& t, Clock::time_point start, bool physical = true);
-    double sourcePower(const std::vector<float>& u) const;  ///< sigma_s U V w_d summed, mean over RGB
+    /// sigma_s U V w_d summed, mean over RGB; `absolute`: each value by its absolute value
+    double sourcePower(const std::vector<float>& u, bool absolute = false) const;
     std::vector<Job> sourceJobs(const std::vector<float>& src) const { return jobs_.sourceJobs(src, M_, m_.albedo); }
     /// One pass of the source `src` (held as the solve holds sources: by rows_ when set):
     /// deposits added to `out`, tallies to t.

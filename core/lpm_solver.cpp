@@ -200,14 +200,23 @@ void LpmSolve::recordPass(int pass, const Tally& t, Clock::time_point start, boo
     }
 }
 
-double LpmSolve::sourcePower(const std::vector<float>& u) const {
+double LpmSolve::sourcePower(const std::vector<float>& u, bool absolute) const {
+    // Fixed runs of voxels added in order: the same sum for any thread count.
+    constexpr size_t kRun = 1 << 12;
+    std::vector<double> part((S_ + kRun - 1) / kRun, 0.0);
+    parallelForChunks(S_, kRun, [&](size_t vb, size_t ve) {
+        double p = 0;
+        for (size_t v = vb; v < ve; ++v)
+            for (int d = 0; d < nb_; ++d)
+                for (int c = 0; c < 3; ++c) {
+                    const double x = u[(v * nb_ + d) * M_ * 3 + c];
+                    p += (absolute ? std::fabs(x) : x) * m_.sigmaT[voxelOf(v)] * m_.albedo[c] * ff_->binWeight(d);
+                }
+        part[vb / kRun] = p;
+    });
     double p = 0;
-    for (size_t v = 0; v < S_; ++v)
-        for (int d = 0; d < nb_; ++d)
-            for (int c = 0; c < 3; ++c)
-                p += double(u[(v * nb_ + d) * M_ * 3 + c]) * m_.sigmaT[voxelOf(v)] * m_.albedo[c] * ff_->binWeight(d) *
-                     V_;
-    return p / 3.0;
+    for (double x : part) p += x;
+    return p * V_ / 3.0;
 }
 
 void LpmSolve::propagate(const std::vector<float>& src, Tally& t, bool depositSh, std::vector<float>& out) {
@@ -271,7 +280,8 @@ void LpmSolve::startFromSource() {
             for (int c = 0; c < 3; ++c) {
                 const float u = (*initialSource_)[(x * nb_ + d) * 3 + c];
                 if (M_ != 1) next_[(x * nb_ + d) * M_ * 3 + c] = u;
-                power += double(u) * m_.sigmaT[voxelOf(x)] * m_.albedo[c] * ff_->binWeight(d) * V_;
+                power += (s_.absoluteSourcePower ? std::fabs(double(u)) : double(u)) * m_.sigmaT[voxelOf(x)] *
+                         m_.albedo[c] * ff_->binWeight(d) * V_;
             }
     if (M_ == 1) next_ = std::move(*initialSource_);
     res_.injected = res_.input = power / 3.0;
@@ -349,6 +359,7 @@ bool LpmSolve::iterate() {
             propagate(unshot_, t, depositSh_, next_);
         }
         recordPass(pass_, t, tp);
+        if (s_.absoluteSourcePower && !sep_) res_.passes.back().scattered = sourcePower(next_, true);
     }
 }
 

@@ -3,7 +3,9 @@
 #include "core/multires.h"
 
 #include <cmath>
+#include <string>
 
+#include "core/error.h"
 #include "core/malloc_policy.h"
 #include "core/parallel.h"
 
@@ -86,20 +88,22 @@ std::vector<float> restrictSource(const Medium& f, const Medium& c, const std::v
 
 namespace {
 
-/// out's means = (accumulate ? out's means : 0) + scale * each fine voxel's coarse parent value.
+/// out's means = (accumulate ? out's means : 0) + scale * each fine voxel's coarse parent
+/// value (times the voxel's weight in `shape`, when given).
 void applyCoarse(const Medium& f, const Medium& c, const std::vector<float>& coarseSource, int bins, int moments,
-                 bool accumulate, float scale, std::vector<float>& out) {
+                 bool accumulate, float scale, std::vector<float>& out, const std::vector<float>* shape = nullptr) {
     parallelForChunks(f.voxelCount(), 4096, [&](size_t vb, size_t ve) {
         for (size_t v = vb; v < ve; ++v) {
             int x, y, z;
             f.coord(v, x, y, z);
             const bool inside = x >= 0 && x < f.nx && y < f.ny && z < f.nz;
             const size_t cv = inside ? c.index(x / 2, y / 2, z / 2) : Medium::npos;
+            const float weight = shape ? scale * (*shape)[v] : scale;
             for (int d = 0; d < bins; ++d)
                 for (int ch = 0; ch < 3; ++ch) {
                     float& o = out[(v * bins + d) * size_t(moments) * 3 + ch];
                     const float p = cv == Medium::npos ? 0.0f : coarseSource[(cv * bins + d) * 3 + ch];
-                    o = accumulate ? o + scale * p : p;
+                    o = accumulate ? o + weight * p : p;
                 }
         }
     });
@@ -113,8 +117,11 @@ void injectCoarse(const Medium& f, const Medium& c, const std::vector<float>& co
 }
 
 void addCoarse(const Medium& f, const Medium& c, const std::vector<float>& coarseSource, int bins, int moments,
-               float scale, std::vector<float>& out) {
-    applyCoarse(f, c, coarseSource, bins, moments, true, scale, out);
+               float scale, std::vector<float>& out, const std::vector<float>* shape) {
+    if (shape && shape->size() != f.voxelCount())
+        throw Error("addCoarse", "the shape holds " + std::to_string(shape->size()) + " weights for " +
+                                     std::to_string(f.voxelCount()) + " fine voxels");
+    applyCoarse(f, c, coarseSource, bins, moments, true, scale, out, shape);
 }
 
 }  // namespace lpm

@@ -36,8 +36,9 @@ void injectCoarse(const Medium& fine, const Medium& coarse, const std::vector<fl
 
 /// out's means += scale * each fine voxel's coarse parent value (as injectCoarse, added;
 /// slopes untouched): the two-grid cycle adds and removes its coarse tail this way instead
-/// of holding it in a third fine-grid buffer.
+/// of holding it in a third fine-grid buffer. With `shape` (core/tail_shape.h: a weight
+/// per stored fine voxel) each voxel adds scale * weight * its parent's value.
 void addCoarse(const Medium& fine, const Medium& coarse, const std::vector<float>& coarseSource, int bins, int moments,
-               float scale, std::vector<float>& out);
+               float scale, std::vector<float>& out, const std::vector<float>* shape = nullptr);
 
 }  // namespace lpm

@@ -166,6 +166,25 @@ double SeparableSource::power(const FineCoarseMap& map, const std::vector<double
     return p * fineVoxelVolume / 3.0;
 }
 
+double SeparableSource::absolutePower(const std::vector<float>& sigmaT, const RGB& albedo,
+                                      double fineVoxelVolume) const {
+    if (!offset.empty()) throw Error("SeparableSource", "absolutePower is for a source without offset");
+    if (magnitude.size() != sigmaT.size() * 3)
+        throw Error("SeparableSource", "absolutePower: " + std::to_string(magnitude.size() / 3) + " magnitudes for " +
+                                           std::to_string(sigmaT.size()) + " fine voxels");
+    constexpr size_t kRun = 1 << 14;  // fixed runs added in order: the same sum for any thread count
+    std::vector<double> part((sigmaT.size() + kRun - 1) / kRun, 0.0);
+    parallelForChunks(sigmaT.size(), kRun, [&](size_t fb, size_t fe) {
+        double p = 0;
+        for (size_t f = fb; f < fe; ++f)
+            for (size_t c = 0; c < 3; ++c) p += std::fabs(double(magnitude[f * 3 + c])) * sigmaT[f] * albedo[c];
+        part[fb / kRun] = p;
+    });
+    double p = 0;
+    for (double v : part) p += v;
+    return p * fineVoxelVolume / 3.0;
+}
+
 SeparableFold::SeparableFold(const FineCoarseMap& map, const std::vector<float>& sigmaT,
                              const std::vector<double>& binWeight, int shCoeffs, const std::uint32_t* shRow)
     : map_(map), sigmaT_(sigmaT), binWeight_(binWeight.begin(), binWeight.end()), nb_(int(binWeight.size())),

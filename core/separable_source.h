@@ -82,6 +82,10 @@ struct SeparableSource {
     /// Source power sum_f sigma_s U_f(d) w_d V, mean over RGB (as LpmSolve::sourcePower).
     double power(const FineCoarseMap& map, const std::vector<double>& binWeight, const RGB& albedo,
                  double fineVoxelVolume) const;
+    /// The same sum with each fine voxel's angular integral taken by its absolute value,
+    /// sum_f sigma_s |m_f| V (mean over RGB): what a signed sum hides where the source
+    /// changes sign between voxels (a two-grid residual). For a source without offset.
+    double absolutePower(const std::vector<float>& sigmaT, const RGB& albedo, double fineVoxelVolume) const;
 };
 
 /// Folds a pass's per-direction deposits into the SH result and a separable next source:

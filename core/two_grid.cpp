@@ -5,7 +5,9 @@
 // piecewise constant, which keeps its power) as the sum r gives rise to. One fine pass of
 // E deposits S at full resolution; its new residual r' = r + K E - E = K E - tail is what
 // the coarse grid got wrong, and the next cycle distributes it, until its power falls
-// below the tolerance (at most kMaxCycles cycles).
+// below the tolerance (at most kMaxCycles cycles). The tail is brought back shaped by the
+// first residual (core/tail_shape.h), and the coarse solves measure the residual, which
+// changes sign between voxels, by its absolute power (docs/multires.md, "Shaped tail").
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -17,6 +19,7 @@
 #include "core/multires.h"
 #include "core/parallel.h"
 #include "core/separable_source.h"
+#include "core/tail_shape.h"
 
 namespace lpm {
 
@@ -27,6 +30,14 @@ namespace {
 /// block without meeting it) a thick cloud at albedo 0.99 needs a fourth
 /// (SeparableSource.ThickHighAlbedoCycleConverges). Each cycle costs one fine pass.
 constexpr int kMaxCycles = 5;
+
+/// The coarse solve of a cycle stops once what it has still to distribute is this share of
+/// the residual's absolute power (or the bake's tolerance, if that is larger): the cycle
+/// itself removes a third to a half of the residual (the coarse and fine operators differ),
+/// so solving the coarse grid further buys nothing. At albedo 0.99, solving it to the
+/// bake's tolerance left the residual at -1% of the input, cycle after cycle, where 0.1
+/// lets it shrink (docs/multires.md, "Shaped tail").
+constexpr double kCoarseShare = 0.1;
 
 /// The coarse grid's settings: the fine solve's bins (the restricted source is in them) and
 /// rays, the plan's coarse directions, GMRES earlier (coarse passes are cheap next to the
@@ -52,6 +63,7 @@ LpmSettings coarseSettings(const LpmSettings& s, const SolvePlan& plan, const st
     cs.krylovBytes = std::min(s.krylovBytes, 40.0 * double(fineStoredVoxels));
     cs.directionsPerFace = plan.coarseDirectionsPerFace;
     cs.sunTerms = false;
+    cs.absoluteSourcePower = true;
     cs.validate();
     return cs;
 }
@@ -63,10 +75,10 @@ LpmSettings coarseSettings(const LpmSettings& s, const SolvePlan& plan, const st
 // With `rows` (core/mass_rows.h) both are held by those rows; so is the coarse solve's
 // every source, unless its plan keeps slopes (a linear source is swept as held, by voxel).
 std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, const SolvePlan& coarsePlan,
-                                          std::vector<float> uc, double rPower, int cycle, int& p, TwoGridCount& count,
-                                          const MassRows* rows) {
+                                          std::vector<float> uc, double rAbsolute, int cycle, int& p,
+                                          TwoGridCount& count, const MassRows* rows) {
     cs.maxOrders = std::max(1, s_.maxOrders - p);
-    cs.tolerance = std::fabs(rPower) > 0 ? s_.tolerance * res_.input / std::fabs(rPower) : s_.tolerance;
+    cs.tolerance = rAbsolute > 0 ? std::max(kCoarseShare, s_.tolerance * res_.input / rAbsolute) : s_.tolerance;
     const size_t width = size_t(nb_) * 3;
     const bool byVoxel = rows && coarsePlan.linearSource;
     if (byVoxel) uc = expandRows(*rows, uc, width);
@@ -86,15 +98,18 @@ std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, con
 }
 
 void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
-                             double rPower, Clock::time_point start) {
-    res_.converged = count.converged && std::fabs(rPower) <= s_.tolerance * res_.input;
+                             const Residual& r, bool shapedTail, Clock::time_point start) {
+    res_.converged = count.converged && std::fabs(r.power) <= s_.tolerance * res_.input;
     res_.stoppedAtCycleCap = !res_.converged && cycles >= kMaxCycles && int(res_.passes.size()) < s_.maxOrders;
-    char buf[300];
+    char buf[400];
     std::snprintf(buf, sizeof buf,
                   "two-grid: coarse grid %dx%dx%d (%zu stored voxels) with %d directions per face, %d cycle(s) of "
-                  "coarse orders and one fine pass, %d coarse passes; source left %.3g of the input",
+                  "coarse orders and one fine pass, %d coarse passes, tail %s; source left %.3g of the input "
+                  "(absolute %.3g)",
                   mc.nx, mc.ny, mc.nz, mc.voxelCount(), cs.directionsPerFace, cycles, count.coarsePasses,
-                  res_.input > 0 ? std::fabs(rPower) / res_.input : 0.0);
+                  shapedTail ? "shaped by the fine source" : "flat",
+                  res_.input > 0 ? std::fabs(r.power) / res_.input : 0.0,
+                  res_.input > 0 ? r.absolute / res_.input : 0.0);
     if (s_.progress)
         s_.progress("two-grid: " + std::to_string(std::chrono::duration<double>(Clock::now() - start).count()) + " s");
     res_.decisions.push_back(buf);
@@ -115,12 +130,14 @@ void LpmSolve::continueOnCoarse(int firstPass) {
     // solve (the peak of an anisotropic bake was there: 24 bins x RGB, 288 B per stored
     // voxel each). The tail (the coarse sources beyond r) stays on the coarse grid: it is
     // added to r before the fine pass and taken from next after it, each fine voxel its
-    // coarse parent's value (means only; the tail has no slopes).
+    // coarse parent's value times its weight in the shape (means only; the tail has no slopes).
     std::vector<float> r = std::move(next_);
     unshot_ = std::vector<float>();
+    const std::vector<float> shape = s_.shapedCoarseTail ? tailShapeOf(mc, r) : std::vector<float>();
+    const std::vector<float>* shaped = shape.empty() ? nullptr : &shape;
     int cycles = 0, p = firstPass;
     TwoGridCount count;
-    double rPower = res_.passes.back().scattered;
+    Residual left{res_.passes.back().scattered, sourcePower(r, true)};
     for (; cycles < kMaxCycles && p < s_.maxOrders; ++cycles) {
         runner_->releaseBuffers();  // the coarse solve needs the memory more than the next fine pass its pages
         // The heap's free pages stay (unlike the separable cycle's): giving them back saved
@@ -128,28 +145,47 @@ void LpmSolve::continueOnCoarse(int firstPass) {
         next_ = std::vector<float>();
         // The restricted source and the coarse result are freed before the fine pass.
         const std::vector<float> tailCoarse =
-            coarseOrders(mc, cs, coarsePlan, restrictSource(m_, mc, r, nb_, M_), rPower, cycles, p, count);
-        addCoarse(m_, mc, tailCoarse, nb_, M_, 1.0f, r);  // r now holds E
+            coarseOrders(mc, cs, coarsePlan, restrictSource(m_, mc, r, nb_, M_), left.absolute, cycles, p, count);
+        addCoarse(m_, mc, tailCoarse, nb_, M_, 1.0f, r, shaped);  // r now holds E
         const auto tf = Clock::now();
         assignZeroed(next_, N_ * perVoxel_);
         Tally t;
         runner_->run(sourceJobs(r), r_, t, true, next_);
         recordPass(p++, t, tf);
         std::swap(r, next_);  // r = K E; next's storage (E) is freed before the next coarse solve
-        addCoarse(m_, mc, tailCoarse, nb_, M_, -1.0f, r);  // r' = K E - tail
-        rPower = sourcePower(r);
-        res_.passes.back().scattered = std::fabs(rPower);
-        if (std::fabs(rPower) <= s_.tolerance * res_.input) {
+        addCoarse(m_, mc, tailCoarse, nb_, M_, -1.0f, r, shaped);  // r' = K E - tail
+        left = {sourcePower(r), sourcePower(r, true)};
+        res_.passes.back().scattered = std::fabs(left.power);
+        if (std::fabs(left.power) <= s_.tolerance * res_.input) {
             ++cycles;
             break;
         }
     }
-    reportTwoGrid(mc, cs, cycles, count, rPower, tp);
+    reportTwoGrid(mc, cs, cycles, count, left, shaped != nullptr, tp);
+}
+
+// The tail's weights inside each coarse voxel from the first residual r (core/tail_shape.h):
+// each fine voxel's strength is the sum of its means over bins and channels.
+std::vector<float> LpmSolve::tailShapeOf(const Medium& mc, const std::vector<float>& r) const {
+    std::vector<float> strength(N_, 0.0f);
+    parallelForChunks(N_, 4096, [&](size_t vb, size_t ve) {
+        for (size_t v = vb; v < ve; ++v) {
+            double sum = 0;
+            for (int d = 0; d < nb_; ++d)
+                for (int c = 0; c < 3; ++c) sum += r[(v * nb_ + d) * M_ * 3 + c];
+            strength[v] = float(sum);
+        }
+    });
+    return tailShape(m_.sigmaT, coarseParents(m_, mc), mc.voxelCount(), strength);
 }
 
 // The same cycle with separable fine sources (core/separable_source.h): r, E and K E are
 // held separably, so no fine buffer of bins is ever allocated; the tail is E's coarse
 // offset, and r' = K E - tail takes it from K E's coarse shape (r never holds an offset).
+// The tail stays flat here: shaped, the part of it beyond its flat value must be taken
+// from K E with its own angular shape, and even held so (tried) the cycle's signed residual
+// stalled at -0.5% on a thick plume at g = 0.6, per voxel no closer to full resolution
+// (docs/multires.md, "Shaped tail").
 void LpmSolve::continueOnCoarseSeparable(int firstPass) {
     const auto tp = Clock::now();
     const Medium& mc = sep_->coarse;
@@ -159,7 +195,7 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
     sep_->unshot = SeparableSource();
     int cycles = 0, p = firstPass;
     TwoGridCount count;
-    double rPower = res_.passes.back().scattered;
+    Residual left{res_.passes.back().scattered, r.absolutePower(m_.sigmaT, m_.albedo, V_)};
     for (; cycles < kMaxCycles && p < s_.maxOrders; ++cycles) {
         runner_->releaseBuffers();  // and the bin source: the coarse solve is the peak
         sep_->binSource = std::vector<Bf16>();
@@ -174,7 +210,8 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         // E = r + tail. The tail is held in half precision (core/half_buffer.h): the same
         // rounded tail is added to E and taken from r', so the rounding moves no energy.
         r.offset.push_back(SeparableSource::holdByBin(
-            coarseOrders(mc, cs, coarsePlan, r.restricted(), rPower, cycles, p, count, &sep_->map.coarseRows), r.bins));
+            coarseOrders(mc, cs, coarsePlan, r.restricted(), left.absolute, cycles, p, count, &sep_->map.coarseRows),
+            r.bins));
         if (heldSh) {
             returnFreedHeapPages();    // the coarse solve's freed buffers, before the SH comes back
             heldSh->restore(res_.sh);  // into its own pages (core/held_sh.h)
@@ -186,14 +223,14 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         runSeparablePass(&r, t, nullptr, &r.offset.back());
         recordPass(p++, t, tf);
         r = std::move(sep_->next);
-        rPower = r.power(sep_->map, sep_->binWeight, m_.albedo, V_);
-        res_.passes.back().scattered = std::fabs(rPower);
-        if (std::fabs(rPower) <= s_.tolerance * res_.input) {
+        left = {r.power(sep_->map, sep_->binWeight, m_.albedo, V_), r.absolutePower(m_.sigmaT, m_.albedo, V_)};
+        res_.passes.back().scattered = std::fabs(left.power);
+        if (std::fabs(left.power) <= s_.tolerance * res_.input) {
             ++cycles;
             break;
         }
     }
-    reportTwoGrid(mc, cs, cycles, count, rPower, tp);
+    reportTwoGrid(mc, cs, cycles, count, left, false, tp);
 }
 
 }  // namespace lpm
