@@ -66,6 +66,7 @@ std::string canonicalSettings(const BakeOptions& o) {
     num("separable_source", s.separableSource);
     num("coarse_tail_extrapolation", s.coarseTailExtrapolation);
     num("shaped_coarse_tail", s.shapedCoarseTail);
+    num("shaped_tail_above", s.shapedTailAbove);
     num("multires_min_voxels", s.multiresMinVoxels);
     num("multires_directions", s.multiresDirections);
     num("subdivide", s.subdivide);

@@ -76,6 +76,9 @@ void LpmSettings::validate() const {
         throw SettingError("LPM", "multiresMinVoxels", "must be >= 0, got " + std::to_string(multiresMinVoxels));
     requireAutoOrRange("multiresDirections", multiresDirections, 1, kMaxDirectionsPerFace);
     requireAutoOrRange("separableSource", separableSource, 0, 1);
+    requireAutoOrRange("shapedCoarseTail", shapedCoarseTail, 0, 1);
+    if (!(shapedTailAbove >= 0))
+        throw SettingError("LPM", "shapedTailAbove", "must be >= 0, got " + std::to_string(shapedTailAbove));
     requireRange("subdivide", subdivide, 1, kMaxSubdivide);
 }
 

@@ -38,12 +38,14 @@ struct LpmSettings {
                                           ///< geometrically and adds the rest as that series
                                           ///< (docs/multires.md, "Geometric tail"); so does a
                                           ///< solve on one grid, within a tenth of the tolerance
-    bool shapedCoarseTail = true;         ///< the two-grid cycle spreads its coarse tail over each coarse voxel's
-                                          ///< children by the first residual they hold, not flat
-                                          ///< (core/tail_shape.h)
-    /// Set by the two-grid cycle for its coarse solves: each pass's source is measured by
-    /// its absolute power (the residual they distribute changes sign between voxels, and a
-    /// signed sum would end them after a pass; docs/multires.md, "Shaped tail").
+    int shapedCoarseTail = -1;            ///< the two-grid cycle's tail inside each coarse voxel: -1 auto (shaped
+                                          ///< when coarse voxels may be optically thicker than shapedTailAbove and
+                                          ///< the fine sources are not separable), 0 flat, 1 shaped by the first
+                                          ///< residual the children hold (core/tail_shape.h)
+    double shapedTailAbove = 2.0;         ///< auto threshold: twice the largest fine voxel's optical depth
+    /// Set by the two-grid cycle for its coarse solves with a shaped tail: each pass's source
+    /// is measured by its absolute power (the residual they distribute changes sign between
+    /// voxels, and a signed sum would end them after a pass; docs/multires.md, "Shaped tail").
     bool absoluteSourcePower = false;
     int linearSource = -1;              ///< -1 auto (on when a voxel is optically thicker than
                                         ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source

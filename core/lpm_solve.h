@@ -58,8 +58,9 @@ private:
     void continueOnCoarseSeparable(int firstPass);
     std::vector<float> tailShapeOf(const Medium& mc, const std::vector<float>& r) const;
     std::vector<float> coarseOrders(const Medium& mc, LpmSettings& cs, const SolvePlan& coarsePlan,
-                                    std::vector<float> uc, double rAbsolute, int cycle, int& p, TwoGridCount& count,
-                                    const MassRows* rows = nullptr);
+                                    std::vector<float> uc, const Residual& left, bool shapedTail, int cycle, int& p,
+                                    TwoGridCount& count, const MassRows* rows = nullptr);
+    bool cycleConverged(const Residual& r, bool shapedTail) const;
     void reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
                        const Residual& r, bool shapedTail, Clock::time_point start);
     /// One fine pass with separable sources: of the light jobs (src null) or of `src`; its

@@ -211,6 +211,35 @@ void planSeparableSource(const SceneSummary& scene, const LpmSettings& s, SolveP
              (s.separableSource == 1 ? " (requested)" : "")});
 }
 
+/// How the two-grid cycle brings its coarse tail back (core/tail_shape.h): flat, each
+/// child its parent's value, or shaped by the first residual the children hold, where a
+/// coarse voxel may be thick enough for its children's light to differ (a coarse voxel is
+/// at most twice as thick as the thickest fine one). Separable sources keep the flat tail.
+void planTailShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
+    if (plan.coarseFrom == 0) return;
+    const double coarseTau = 2.0 * scene.maxVoxelTau;
+    if (plan.separableSource) {
+        if (s.shapedCoarseTail == 1)
+            plan.decisions.push_back({"flat two-grid tail (shaped requested)", "separable fine sources keep it flat"});
+        return;
+    }
+    const bool thick = coarseTau > s.shapedTailAbove;
+    plan.shapedTail = s.shapedCoarseTail == 1 || (s.shapedCoarseTail == -1 && thick);
+    if (plan.shapedTail)
+        plan.decisions.push_back(
+            {"two-grid tail shaped inside coarse voxels",
+             format("coarse voxels up to optical depth %.3g", coarseTau) +
+                 (s.shapedCoarseTail == 1
+                      ? " (requested)"
+                      : format(" > %g: a flat tail would give their dim children the lit ones' mean",
+                               s.shapedTailAbove))});
+    else
+        plan.decisions.push_back({"flat two-grid tail", s.shapedCoarseTail == 0
+                                                            ? std::string("requested")
+                                                            : format("coarse voxels up to optical depth %.3g <= %g",
+                                                                     coarseTau, s.shapedTailAbove)});
+}
+
 /// The resolution schedule of the scattering orders: which run on the 2x coarser grid
 /// (docs/multires.md), with how many directions and rays.
 void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
@@ -230,6 +259,7 @@ void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& 
                                                                 std::to_string(s.multiresMinVoxels)});
     }
     planSeparableSource(scene, s, plan);
+    planTailShape(scene, s, plan);
     const int n = s.directionsPerFace, half = n / 2, b = plan.binsPerFace;
     plan.coarseDirectionsPerFace =
         s.multiresDirections > 0 ? s.multiresDirections : (half >= 2 && (b == 0 || half % b == 0) ? half : n);

@@ -65,6 +65,7 @@ struct SolvePlan {
     int coarseFrom = 0;            ///< first order on the 2x coarser grid; 0 = full resolution throughout
     int coarseDirectionsPerFace = 0;
     bool separableSource = false;             ///< fine sources held separably (core/separable_source.h)
+    bool shapedTail = false;                  ///< the two-grid tail shaped inside coarse voxels (core/tail_shape.h)
     int raysSingle = 2;                       ///< rays per voxel of pass 0 (single scattering)
     int raysHigher = 2;                       ///< rays per voxel of the later passes
     bool krylov = true;                       ///< GMRES may take over when plain iteration would be slow

@@ -22,8 +22,8 @@ std::vector<std::uint32_t> coarseParents(const Medium& fine, const Medium& coars
     return parent;
 }
 
-std::vector<float> tailShape(const std::vector<float>& sigmaT, const std::vector<std::uint32_t>& parent,
-                             size_t parents, const std::vector<float>& strength) {
+std::vector<float> tailShape(const std::vector<float>& sigmaT, const std::vector<std::uint32_t>& parent, size_t parents,
+                             const std::vector<float>& strength) {
     if (parent.size() != sigmaT.size() || strength.size() != sigmaT.size())
         throw Error("tailShape", "parents (" + std::to_string(parent.size()) + ") and strengths (" +
                                      std::to_string(strength.size()) + ") must be given for each of the " +
@@ -34,7 +34,8 @@ std::vector<float> tailShape(const std::vector<float>& sigmaT, const std::vector
     for (size_t f = 0; f < sigmaT.size(); ++f) {
         const std::uint32_t p = parent[f];
         if (p == kNoParent) continue;
-        if (p >= parents) throw Error("tailShape", "parent index " + std::to_string(p) + " >= " + std::to_string(parents));
+        if (p >= parents)
+            throw Error("tailShape", "parent index " + std::to_string(p) + " >= " + std::to_string(parents));
         mass[p] += sigmaT[f];
         weighted[p] += double(sigmaT[f]) * std::max(0.0f, strength[f]);
     }

@@ -29,7 +29,7 @@ std::vector<std::uint32_t> coarseParents(const Medium& fine, const Medium& coars
 
 /// The weights w_f above for every stored fine voxel: `parent` its parent's index (below
 /// `parents`, or kNoParent: weight 1), `strength` its s_f (negative values count as 0).
-std::vector<float> tailShape(const std::vector<float>& sigmaT, const std::vector<std::uint32_t>& parent,
-                             size_t parents, const std::vector<float>& strength);
+std::vector<float> tailShape(const std::vector<float>& sigmaT, const std::vector<std::uint32_t>& parent, size_t parents,
+                             const std::vector<float>& strength);
 
 }  // namespace lpm

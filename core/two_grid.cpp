@@ -31,13 +31,28 @@ namespace {
 /// (SeparableSource.ThickHighAlbedoCycleConverges). Each cycle costs one fine pass.
 constexpr int kMaxCycles = 5;
 
-/// The coarse solve of a cycle stops once what it has still to distribute is this share of
-/// the residual's absolute power (or the bake's tolerance, if that is larger): the cycle
+/// Cycles at most with the shaped tail, whose residual must also fall in absolute power
+/// (kAbsoluteGuard): the 1M-voxel smoke at density scale 150 needs 4 at albedo 0.9, a
+/// 32^3 plume of optical depth 64 (TailShape tests) 6.
+constexpr int kMaxShapedCycles = 8;
+
+int maxCycles(bool shapedTail) { return shapedTail ? kMaxShapedCycles : kMaxCycles; }
+
+/// With the shaped tail, the coarse solve of a cycle stops once what it has still to
+/// distribute is this share of the residual's absolute power (or the bake's tolerance, if
+/// that is larger; the flat tail keeps the signed power's tolerance): the cycle
 /// itself removes a third to a half of the residual (the coarse and fine operators differ),
 /// so solving the coarse grid further buys nothing. At albedo 0.99, solving it to the
 /// bake's tolerance left the residual at -1% of the input, cycle after cycle, where 0.1
 /// lets it shrink (docs/multires.md, "Shaped tail").
 constexpr double kCoarseShare = 0.1;
+
+/// A cycle ends once its residual's signed power is within the tolerance and, with the
+/// shaped tail, its absolute power within this many times it: the shaped tail's residual
+/// changes sign between voxels, and on a cloud at albedo 0.99 its signed power fell to
+/// 0.07% of the input after one cycle with 41% in absolute power left (band 0 1.9% from
+/// the converged solve).
+constexpr double kAbsoluteGuard = 10.0;
 
 /// The coarse grid's settings: the fine solve's bins (the restricted source is in them) and
 /// rays, the plan's coarse directions, GMRES earlier (coarse passes are cheap next to the
@@ -63,22 +78,29 @@ LpmSettings coarseSettings(const LpmSettings& s, const SolvePlan& plan, const st
     cs.krylovBytes = std::min(s.krylovBytes, 40.0 * double(fineStoredVoxels));
     cs.directionsPerFace = plan.coarseDirectionsPerFace;
     cs.sunTerms = false;
-    cs.absoluteSourcePower = true;
     cs.validate();
     return cs;
 }
 
 }  // namespace
 
+bool LpmSolve::cycleConverged(const Residual& r, bool shapedTail) const {
+    const double line = s_.tolerance * res_.input;
+    return std::fabs(r.power) <= line && (!shapedTail || r.absolute <= kAbsoluteGuard * line);
+}
+
 // Iterates the orders of the restricted source `uc` (taken over) on the coarse grid
 // (passes numbered from p on); returns the sources it propagated beyond uc (the tail).
 // With `rows` (core/mass_rows.h) both are held by those rows; so is the coarse solve's
 // every source, unless its plan keeps slopes (a linear source is swept as held, by voxel).
 std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, const SolvePlan& coarsePlan,
-                                          std::vector<float> uc, double rAbsolute, int cycle, int& p,
-                                          TwoGridCount& count, const MassRows* rows) {
+                                          std::vector<float> uc, const Residual& left, bool shapedTail, int cycle,
+                                          int& p, TwoGridCount& count, const MassRows* rows) {
     cs.maxOrders = std::max(1, s_.maxOrders - p);
-    cs.tolerance = rAbsolute > 0 ? std::max(kCoarseShare, s_.tolerance * res_.input / rAbsolute) : s_.tolerance;
+    const double measure = shapedTail ? left.absolute : std::fabs(left.power);
+    cs.tolerance = measure > 0 ? s_.tolerance * res_.input / measure : s_.tolerance;
+    if (shapedTail) cs.tolerance = std::max(cs.tolerance, kCoarseShare);
+    cs.absoluteSourcePower = shapedTail;
     const size_t width = size_t(nb_) * 3;
     const bool byVoxel = rows && coarsePlan.linearSource;
     if (byVoxel) uc = expandRows(*rows, uc, width);
@@ -99,8 +121,9 @@ std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, con
 
 void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
                              const Residual& r, bool shapedTail, Clock::time_point start) {
-    res_.converged = count.converged && std::fabs(r.power) <= s_.tolerance * res_.input;
-    res_.stoppedAtCycleCap = !res_.converged && cycles >= kMaxCycles && int(res_.passes.size()) < s_.maxOrders;
+    res_.converged = count.converged && cycleConverged(r, shapedTail);
+    res_.stoppedAtCycleCap =
+        !res_.converged && cycles >= maxCycles(shapedTail) && int(res_.passes.size()) < s_.maxOrders;
     char buf[400];
     std::snprintf(buf, sizeof buf,
                   "two-grid: coarse grid %dx%dx%d (%zu stored voxels) with %d directions per face, %d cycle(s) of "
@@ -133,35 +156,35 @@ void LpmSolve::continueOnCoarse(int firstPass) {
     // coarse parent's value times its weight in the shape (means only; the tail has no slopes).
     std::vector<float> r = std::move(next_);
     unshot_ = std::vector<float>();
-    const std::vector<float> shape = s_.shapedCoarseTail ? tailShapeOf(mc, r) : std::vector<float>();
-    const std::vector<float>* shaped = shape.empty() ? nullptr : &shape;
+    const std::vector<float> shape = plan_.shapedTail ? tailShapeOf(mc, r) : std::vector<float>();
+    const bool shaped = !shape.empty();
     int cycles = 0, p = firstPass;
     TwoGridCount count;
     Residual left{res_.passes.back().scattered, sourcePower(r, true)};
-    for (; cycles < kMaxCycles && p < s_.maxOrders; ++cycles) {
+    for (; cycles < maxCycles(shaped) && p < s_.maxOrders; ++cycles) {
         runner_->releaseBuffers();  // the coarse solve needs the memory more than the next fine pass its pages
         // The heap's free pages stay (unlike the separable cycle's): giving them back saved
         // 0-15 MiB here for 8k more page faults (docs/performance.md, session 18).
         next_ = std::vector<float>();
         // The restricted source and the coarse result are freed before the fine pass.
         const std::vector<float> tailCoarse =
-            coarseOrders(mc, cs, coarsePlan, restrictSource(m_, mc, r, nb_, M_), left.absolute, cycles, p, count);
-        addCoarse(m_, mc, tailCoarse, nb_, M_, 1.0f, r, shaped);  // r now holds E
+            coarseOrders(mc, cs, coarsePlan, restrictSource(m_, mc, r, nb_, M_), left, shaped, cycles, p, count);
+        addCoarse(m_, mc, tailCoarse, nb_, M_, 1.0f, r, shaped ? &shape : nullptr);  // r now holds E
         const auto tf = Clock::now();
         assignZeroed(next_, N_ * perVoxel_);
         Tally t;
         runner_->run(sourceJobs(r), r_, t, true, next_);
         recordPass(p++, t, tf);
         std::swap(r, next_);  // r = K E; next's storage (E) is freed before the next coarse solve
-        addCoarse(m_, mc, tailCoarse, nb_, M_, -1.0f, r, shaped);  // r' = K E - tail
+        addCoarse(m_, mc, tailCoarse, nb_, M_, -1.0f, r, shaped ? &shape : nullptr);  // r' = K E - tail
         left = {sourcePower(r), sourcePower(r, true)};
         res_.passes.back().scattered = std::fabs(left.power);
-        if (std::fabs(left.power) <= s_.tolerance * res_.input) {
+        if (cycleConverged(left, shaped)) {
             ++cycles;
             break;
         }
     }
-    reportTwoGrid(mc, cs, cycles, count, left, shaped != nullptr, tp);
+    reportTwoGrid(mc, cs, cycles, count, left, shaped, tp);
 }
 
 // The tail's weights inside each coarse voxel from the first residual r (core/tail_shape.h):
@@ -210,7 +233,7 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         // E = r + tail. The tail is held in half precision (core/half_buffer.h): the same
         // rounded tail is added to E and taken from r', so the rounding moves no energy.
         r.offset.push_back(SeparableSource::holdByBin(
-            coarseOrders(mc, cs, coarsePlan, r.restricted(), left.absolute, cycles, p, count, &sep_->map.coarseRows),
+            coarseOrders(mc, cs, coarsePlan, r.restricted(), left, false, cycles, p, count, &sep_->map.coarseRows),
             r.bins));
         if (heldSh) {
             returnFreedHeapPages();    // the coarse solve's freed buffers, before the SH comes back
@@ -225,7 +248,7 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         r = std::move(sep_->next);
         left = {r.power(sep_->map, sep_->binWeight, m_.albedo, V_), r.absolutePower(m_.sigmaT, m_.albedo, V_)};
         res_.passes.back().scattered = std::fabs(left.power);
-        if (std::fabs(left.power) <= s_.tolerance * res_.input) {
+        if (cycleConverged(left, false)) {
             ++cycles;
             break;
         }

@@ -108,12 +108,15 @@ TEST(Multires, AutoKeepsSmallBlocksAtFullResolution) {
 // Albedo 0.99: the coarse grid's source iteration converges slowly, so it switches to GMRES
 // after a few passes (coarseKrylovAfter); the result stays within the solver tolerance of
 // plain source iteration (the expensive path, no GMRES anywhere) in fewer coarse passes.
+// Both with the flat tail, whose coarse solves run to the bake's tolerance (the shaped
+// tail's stop at a tenth of the residual: tail_shape_test.cpp).
 TEST(Multires, CoarseGridSwitchesToGmresEarly) {
     Case cs{"cloud g0 a0.99", VolumeKind::Cloud, 0.0, 0.99, 16.0};
     Scene sc = makeScene(cs, 32);
     sc.lights.env = &sc.sky;
     LpmSettings early, plain;
     early.multires = plain.multires = 1;
+    early.shapedCoarseTail = plain.shapedCoarseTail = 0;
     plain.krylov = false;
     plain.coarseTailExtrapolation = false;  // the expensive path: every coarse pass
     const LpmResult re = solveLpm(sc.medium, sc.lights, early);

@@ -467,7 +467,8 @@ TEST(SeparableSource, BakeStaysWithFullSourcesAgainstMonteCarlo) {
 namespace {
 
 /// The 32^3 scene of `cs` under the sky and sun, solved two-grid with separable fine
-/// sources (`separable`) and with full ones (`full`).
+/// sources (`separable`) and with full ones (`full`), both with the flat tail (separable
+/// sources keep it; core/tail_shape.h).
 struct SeparableAndFull {
     LpmSettings settings;
     size_t voxels = 0;
@@ -478,6 +479,7 @@ struct SeparableAndFull {
         LpmSettings fullSettings;
         settings.multires = fullSettings.multires = 1;
         fullSettings.separableSource = 0;
+        fullSettings.shapedCoarseTail = 0;
         voxels = sc.medium.voxelCount();
         separable = solveLpm(sc.medium, sc.lights, settings);
         full = solveLpm(sc.medium, sc.lights, fullSettings);

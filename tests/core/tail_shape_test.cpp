@@ -131,7 +131,7 @@ TailRuns solveThreeWays(const Scene& sc, int linearSource) {
     full.linearSource = shaped.linearSource = flat.linearSource = linearSource;
     full.multires = 0;
     shaped.multires = flat.multires = 1;
-    flat.shapedCoarseTail = false;
+    flat.shapedCoarseTail = 0;
     return {solveLpm(sc.medium, sc.lights, full), solveLpm(sc.medium, sc.lights, shaped),
             solveLpm(sc.medium, sc.lights, flat), 0, 0};
 }
@@ -147,14 +147,14 @@ TailRuns thickPlume(double g, int linearSource) {
     const double flat = voxelRelativeRms(sc.medium, r.flat, r.full);
     const double shapedAll = band0RelativeRms(sc.medium, r.shaped, r.full);
     const double flatAll = band0RelativeRms(sc.medium, r.flat, r.full);
-    std::printf("g = %g, band 0 against full resolution: per voxel shaped %.4f, flat %.4f; overall shaped %.4f, "
-                "flat %.4f\n",
-                g, shaped, flat, shapedAll, flatAll);
+    std::printf(
+        "g = %g, band 0 against full resolution: per voxel shaped %.4f, flat %.4f; overall shaped %.4f, "
+        "flat %.4f\n",
+        g, shaped, flat, shapedAll, flatAll);
     EXPECT_TRUE(saidDecision(r.shaped, "tail shaped by the fine source"));
     EXPECT_TRUE(saidDecision(r.flat, "tail flat"));
     EXPECT_TRUE(r.shaped.converged);
-    EXPECT_NEAR(r.shaped.absorbed + r.shaped.escaped + r.shaped.unshot, r.shaped.injected,
-                2e-3 * r.shaped.injected);
+    EXPECT_NEAR(r.shaped.absorbed + r.shaped.escaped + r.shaped.unshot, r.shaped.injected, 2e-3 * r.shaped.injected);
     EXPECT_LE(shapedAll, flatAll);
     r.shapedError = shaped;
     r.flatError = flat;
