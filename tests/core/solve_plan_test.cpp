@@ -231,6 +231,37 @@ TEST(SolvePlan, SeparableFineSourcesWithBinsOnTheTwoGridSolve) {
     EXPECT_TRUE(says(thick, "the linear source keeps slopes"));
 }
 
+// The two-grid tail is shaped where coarse voxels may be optically thicker than 2 (twice
+// the thickest fine voxel), flat elsewhere and with separable sources; either can be asked
+// for (the accuracy of each: tail_shape_test.cpp).
+TEST(SolvePlan, TwoGridTailShapedWhereCoarseVoxelsAreThick) {
+    SceneSummary sc = smallScene();
+    sc.dims[0] = sc.dims[1] = sc.dims[2] = 64;
+    sc.storedVoxels = 64 * 64 * 64;
+    sc.maxVoxelTau = 1.5;
+    const SolvePlan thick = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_TRUE(thick.shapedTail);
+    EXPECT_TRUE(says(thick, "two-grid tail shaped inside coarse voxels: coarse voxels up to optical depth 3 > 2"));
+    sc.maxVoxelTau = 0.9;
+    const SolvePlan thin = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_FALSE(thin.shapedTail);
+    EXPECT_TRUE(says(thin, "flat two-grid tail: coarse voxels up to optical depth 1.8 <= 2"));
+    LpmSettings shaped;
+    shaped.shapedCoarseTail = 1;
+    EXPECT_TRUE(planSolve(sc, shaped, 2).shapedTail);
+    EXPECT_TRUE(says(planSolve(sc, shaped, 2), "(requested)"));
+    sc.maxVoxelTau = 1.5;
+    LpmSettings flat;
+    flat.shapedCoarseTail = 0;
+    EXPECT_FALSE(planSolve(sc, flat, 2).shapedTail);
+    sc.g = 0.6;  // separable fine sources
+    const SolvePlan separable = planSolve(sc, shaped, 2);
+    EXPECT_TRUE(separable.separableSource);
+    EXPECT_FALSE(separable.shapedTail);
+    EXPECT_TRUE(says(separable, "flat two-grid tail (shaped requested): separable fine sources keep it flat"));
+    EXPECT_FALSE(planSolve(smallScene(), shaped, 2).shapedTail);  // full resolution: no tail
+}
+
 TEST(SolvePlan, PredictedCostScalesWithVoxelsRaysAndThreads) {
     SceneSummary sc = smallScene();
     LpmSettings fullRes;  // at 2x the voxels the block would reach the two-grid threshold
