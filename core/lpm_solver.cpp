@@ -202,20 +202,16 @@ void LpmSolve::recordPass(int pass, const Tally& t, Clock::time_point start, boo
 
 double LpmSolve::sourcePower(const std::vector<float>& u, bool absolute) const {
     // Fixed runs of voxels added in order: the same sum for any thread count.
-    constexpr size_t kRun = 1 << 12;
-    std::vector<double> part((S_ + kRun - 1) / kRun, 0.0);
-    parallelForChunks(S_, kRun, [&](size_t vb, size_t ve) {
-        double p = 0;
+    const double p = parallelSumOfChunks(S_, 1 << 12, [&](size_t vb, size_t ve) {
+        double part = 0;
         for (size_t v = vb; v < ve; ++v)
             for (int d = 0; d < nb_; ++d)
                 for (int c = 0; c < 3; ++c) {
                     const double x = u[(v * nb_ + d) * M_ * 3 + c];
-                    p += (absolute ? std::fabs(x) : x) * m_.sigmaT[voxelOf(v)] * m_.albedo[c] * ff_->binWeight(d);
+                    part += (absolute ? std::fabs(x) : x) * m_.sigmaT[voxelOf(v)] * m_.albedo[c] * ff_->binWeight(d);
                 }
-        part[vb / kRun] = p;
+        return part;
     });
-    double p = 0;
-    for (double x : part) p += x;
     return p * V_ / 3.0;
 }
 

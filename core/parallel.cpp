@@ -1,11 +1,23 @@
 #include "core/parallel.h"
 
+#include <vector>
+
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
 
 namespace lpm {
+
+double parallelSumOfChunks(std::size_t n, std::size_t grain,
+                           const std::function<double(std::size_t, std::size_t)>& part) {
+    if (grain == 0) grain = 1;
+    std::vector<double> sums((n + grain - 1) / grain, 0.0);
+    parallelForChunks(n, grain, [&](std::size_t b, std::size_t e) { sums[b / grain] = part(b, e); });
+    double sum = 0;
+    for (double x : sums) sum += x;
+    return sum;
+}
 
 void parallelForChunks(std::size_t n, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body) {
     if (n == 0) return;

@@ -11,6 +11,11 @@ namespace lpm {
 /// Calls body(begin, end) for fixed chunks [k*grain, min(n,(k+1)*grain)) in parallel.
 void parallelForChunks(std::size_t n, std::size_t grain, const std::function<void(std::size_t, std::size_t)>& body);
 
+/// The sum of part(begin, end) over the same fixed chunks, computed in parallel and added
+/// in chunk order: the same double for any thread count.
+double parallelSumOfChunks(std::size_t n, std::size_t grain,
+                           const std::function<double(std::size_t, std::size_t)>& part);
+
 /// Number of worker threads currently allowed.
 int maxThreads();
 

@@ -146,23 +146,18 @@ double SeparableSource::power(const FineCoarseMap& map, const std::vector<double
                               double fineVoxelVolume) const {
     // Partial sums over fixed runs of coarse voxels, added in order: the same sum for any
     // thread count (serial, this loop held the other thread idle for 0.1 s of a plume-1M bake).
-    constexpr size_t kRun = 1024;
-    const size_t voxels = map.sigmaSum.size();
-    std::vector<double> part((voxels + kRun - 1) / kRun, 0.0);
-    parallelForChunks(voxels, kRun, [&](size_t vb, size_t ve) {
-        double p = 0;
+    const double p = parallelSumOfChunks(map.sigmaSum.size(), 1024, [&](size_t vb, size_t ve) {
+        double part = 0;
         for (size_t ci = vb; ci < ve; ++ci)
             for (int d = 0; d < bins; ++d)
                 for (int c = 0; c < 3; ++c) {
                     const size_t i = heldIndex(ci, size_t(d), size_t(c));
                     const float r =
                         offset.empty() ? shape.at(i) : shape.at(i) + offsetAt(i);  // restricted(), not materialised
-                    p += double(r) * map.sigmaSum[ci] * albedo[c] * binWeight[size_t(d)];
+                    part += double(r) * map.sigmaSum[ci] * albedo[c] * binWeight[size_t(d)];
                 }
-        part[vb / kRun] = p;
+        return part;
     });
-    double p = 0;
-    for (double v : part) p += v;
     return p * fineVoxelVolume / 3.0;
 }
 
@@ -172,16 +167,12 @@ double SeparableSource::absolutePower(const std::vector<float>& sigmaT, const RG
     if (magnitude.size() != sigmaT.size() * 3)
         throw Error("SeparableSource", "absolutePower: " + std::to_string(magnitude.size() / 3) + " magnitudes for " +
                                            std::to_string(sigmaT.size()) + " fine voxels");
-    constexpr size_t kRun = 1 << 14;  // fixed runs added in order: the same sum for any thread count
-    std::vector<double> part((sigmaT.size() + kRun - 1) / kRun, 0.0);
-    parallelForChunks(sigmaT.size(), kRun, [&](size_t fb, size_t fe) {
-        double p = 0;
+    const double p = parallelSumOfChunks(sigmaT.size(), 1 << 14, [&](size_t fb, size_t fe) {
+        double part = 0;  // fixed runs added in order: the same sum for any thread count
         for (size_t f = fb; f < fe; ++f)
-            for (size_t c = 0; c < 3; ++c) p += std::fabs(double(magnitude[f * 3 + c])) * sigmaT[f] * albedo[c];
-        part[fb / kRun] = p;
+            for (size_t c = 0; c < 3; ++c) part += std::fabs(double(magnitude[f * 3 + c])) * sigmaT[f] * albedo[c];
+        return part;
     });
-    double p = 0;
-    for (double v : part) p += v;
     return p * fineVoxelVolume / 3.0;
 }
 

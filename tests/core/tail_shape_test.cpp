@@ -39,15 +39,19 @@ TEST(TailShape, KeepsEachParentsMassAndFollowsTheStrength) {
         }
         mass[parent[f]] += sigma[f];
         shaped[parent[f]] += double(sigma[f]) * w[f];
-        if (parent[f] == 4) EXPECT_EQ(w[f], 1.0f);
-        else if (strength[f] <= 0) EXPECT_EQ(w[f], 0.0f);
+        if (parent[f] == 4) {
+            EXPECT_EQ(w[f], 1.0f);
+        } else if (strength[f] <= 0) {
+            EXPECT_EQ(w[f], 0.0f);
+        }
     }
     for (size_t p = 0; p < parents; ++p) EXPECT_NEAR(shaped[p], mass[p], 1e-5 * mass[p]) << "parent " << p;
     // Inside a parent, w / strength is one constant.
     for (size_t f = 0; f < voxels; ++f)
         for (size_t g = 0; g < voxels; ++g)
-            if (parent[f] == 0 && parent[g] == 0 && strength[f] > 0 && strength[g] > 0)
+            if (parent[f] == 0 && parent[g] == 0 && strength[f] > 0 && strength[g] > 0) {
                 EXPECT_NEAR(w[f] / strength[f], w[g] / strength[g], 1e-5 * w[f] / strength[f]);
+            }
 }
 
 TEST(TailShape, NamesMismatchedSizes) {
