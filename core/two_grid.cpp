@@ -40,9 +40,9 @@ int maxCycles(bool shapedTail) { return shapedTail ? kMaxShapedCycles : kMaxCycl
 
 /// With the shaped tail, the coarse solve of a cycle stops once what it has still to
 /// distribute is this share of the residual's absolute power (or the bake's tolerance, if
-/// that is larger; the flat tail keeps the signed power's tolerance): the cycle
-/// itself removes a third to a half of the residual (the coarse and fine operators differ),
-/// so solving the coarse grid further buys nothing. At albedo 0.99, solving it to the
+/// that is larger; the flat tail keeps the signed power's tolerance): a cycle removes only
+/// a half to four fifths of the residual's absolute power (the coarse and fine operators
+/// differ), so solving the coarse grid further buys nothing. At albedo 0.99, solving it to the
 /// bake's tolerance left the residual at -1% of the input, cycle after cycle, where 0.1
 /// lets it shrink (docs/multires.md, "Shaped tail").
 constexpr double kCoarseShare = 0.1;
