@@ -65,6 +65,7 @@ std::string flagOf(const std::string& field) {
                                                                 {"multires", "--multires"},
                                                                 {"multiresAfter", "--multires-after"},
                                                                 {"separableSource", "--separable-sources"},
+                                                                {"shapedCoarseTail", "--two-grid-tail"},
                                                                 {"linearSource", "--source"},
                                                                 {"deltaM", "--delta-m"},
                                                                 {"envHotShare", "--env-hot-share"},

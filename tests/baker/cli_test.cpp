@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <fstream>
 
 #include <sys/stat.h>
 
@@ -636,6 +637,35 @@ TEST(Cli, UnconvergedBakeSaysWhichCapStoppedIt) {
     const auto ro = runLpmbake(orders, dir);
     ASSERT_EQ(ro.code, 0) << ro.err;
     EXPECT_NE(ro.err.find("above --tolerance 0.0001 (raise --max-orders)"), std::string::npos) << ro.err;
+}
+
+// The torus's voxels reach optical depth 40: the planner shapes the two-grid tail, and
+// --two-grid-tail flat / shaped forces either (the plan in the file says which); a value
+// outside the three is a one-line error naming the flag.
+TEST(Cli, TwoGridTailFollowsThePlanOrTheFlag) {
+    const std::string dir = lpmtest::scratchDir();
+    const auto decisions = [&](const std::string& name, std::vector<std::string> extra) {
+        auto a = torusArgs(dir + "/" + name + ".vdb");
+        a.insert(a.end(), {"--sun", "0.3,0.8,0.5", "--multires", "on"});
+        a.insert(a.end(), extra.begin(), extra.end());
+        const auto r = runLpmbake(a, dir);
+        EXPECT_EQ(r.code, 0) << r.err;
+        return metaString(*readBakeFile(dir + "/" + name + ".vdb").meta, "lpm:decisions");
+    };
+    const std::string automatic = decisions("auto", {});
+    EXPECT_NE(automatic.find("two-grid tail shaped inside coarse voxels: coarse voxels up to optical depth"),
+              std::string::npos)
+        << automatic;
+    EXPECT_NE(automatic.find("tail shaped by the fine source"), std::string::npos) << automatic;
+    const std::string flat = decisions("flat", {"--two-grid-tail", "flat"});
+    EXPECT_NE(flat.find("flat two-grid tail: requested"), std::string::npos) << flat;
+    EXPECT_NE(flat.find("tail flat"), std::string::npos) << flat;
+    auto bad = torusArgs(dir + "/bad.vdb");
+    bad.insert(bad.end(), {"--two-grid-tail", "round"});
+    const auto rb = runLpmbake(bad, dir);
+    EXPECT_NE(rb.code, 0);
+    EXPECT_NE(rb.err.find("--two-grid-tail"), std::string::npos) << rb.err;
+    EXPECT_FALSE(std::ifstream(dir + "/bad.vdb").good());
 }
 
 // At SH order >= 1 the solver holds SH rows only for the voxels the bake writes
