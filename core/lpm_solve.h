@@ -61,6 +61,8 @@ private:
                                     std::vector<float> uc, const Residual& left, bool shapedTail, int cycle, int& p,
                                     TwoGridCount& count, const MassRows* rows = nullptr);
     bool cycleConverged(const Residual& r, bool shapedTail) const;
+    /// -v: one cycle's residual after its fine pass (signed and absolute power).
+    void reportCycle(int cycle, const Residual& left) const;
     void reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
                        const Residual& r, bool shapedTail, Clock::time_point start);
     /// One fine pass with separable sources: of the light jobs (src null) or of `src`; its

@@ -139,6 +139,14 @@ void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles
     continuedOnCoarse_ = true;
 }
 
+void LpmSolve::reportCycle(int cycle, const Residual& left) const {
+    if (!s_.progress || !(res_.input > 0)) return;
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "two-grid cycle %d: residual %.3g of the input (absolute %.3g)", cycle + 1,
+                  left.power / res_.input, left.absolute / res_.input);
+    s_.progress(buf);
+}
+
 void LpmSolve::continueOnCoarse(int firstPass) {
     if (sep_) {
         continueOnCoarseSeparable(firstPass);
@@ -179,6 +187,7 @@ void LpmSolve::continueOnCoarse(int firstPass) {
         addCoarse(m_, mc, tailCoarse, nb_, M_, -1.0f, r, shaped ? &shape : nullptr);  // r' = K E - tail
         left = {sourcePower(r), sourcePower(r, true)};
         res_.passes.back().scattered = std::fabs(left.power);
+        reportCycle(cycles, left);
         if (cycleConverged(left, shaped)) {
             ++cycles;
             break;
@@ -248,6 +257,7 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
         r = std::move(sep_->next);
         left = {r.power(sep_->map, sep_->binWeight, m_.albedo, V_), r.absolutePower(m_.sigmaT, m_.albedo, V_)};
         res_.passes.back().scattered = std::fabs(left.power);
+        reportCycle(cycles, left);
         if (cycleConverged(left, false)) {
             ++cycles;
             break;
