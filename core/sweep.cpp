@@ -872,6 +872,14 @@ public:
         for (int k = 0; k < s1 - s0; ++k) sweepSlice(job_.sign > 0 ? s0 + k : s1 - 1 - k, any);
     }
 
+    // The number of slices of one tile layer, and its k-th in sweep order (sweepLayer's
+    // slices one at a time, for sweeps that interleave theirs over a layer of live planes).
+    int slicesOf(int layer) const { return std::min(g_.na, (layer + 1) * K) - layer * K; }
+    void sweepLayerSlice(int layer, int k) {
+        const int s0 = layer * K, s1 = std::min(g_.na, s0 + K);
+        sweepSlice(job_.sign > 0 ? s0 + k : s1 - 1 - k, true);
+    }
+
     // After the last layer: the rays still in the block escape; adds this sweep's tally.
     void finish(Tally& tally) {
         crossEmptyRun();
@@ -1586,6 +1594,32 @@ void sweepStepLinearGroup(const Medium& m, const std::vector<const Job*>& jobs, 
 
 namespace {
 
+// The sweeps of a batch through one tile layer. One sweep after another, each keeps its
+// ray rows (3 r^2 floats a voxel of the layer's cross-section) in cache over the layer's
+// slices and reads the layer's planes (8 floats a voxel, 26 for the linear source) anew;
+// slice by slice, each slice's planes are read by every sweep while in cache, and the rays
+// are read anew. bySlice: the planes outweigh the rays (the linear source with 1 ray per
+// voxel: fine passes 15-20% faster on the 1M smoke at density scale 150; the constant
+// source at 2 rays, slice by slice, took single scattering from 0.6-0.8 s to 1.0 s).
+// A voxel takes deposits only while its own slice is swept, so each voxel adds the sweeps'
+// deposits in the sweeps' order either way: the same sums, bit for bit.
+void sweepLayerOfBatch(const std::vector<std::unique_ptr<StepSweep>>& sweeps, int layer, bool any, bool bySlice) {
+    if (!any || !bySlice) {
+        for (auto& sw : sweeps) sw->sweepLayer(layer, any);
+        return;
+    }
+    const int slices = sweeps[0]->slicesOf(layer);
+    for (int k = 0; k < slices; ++k)
+        for (auto& sw : sweeps) sw->sweepLayerSlice(layer, k);
+}
+
+// Whether a batch's sweeps go slice by slice (sweepLayerOfBatch): when the planes hold at
+// least 4x the floats of the ray rows per voxel.
+bool batchSweepsBySlice(bool linear, int r) {
+    const int planeFloats = linear ? LinearChunk::kArrays : kChunk / kLanes;
+    return planeFloats >= 4 * 3 * r * r;
+}
+
 // sweepStepBatch (phi a float*), or the linear source's (sweepStepLinearBatch: phi its
 // LinearBatchDeposits).
 template <class Target>
@@ -1603,6 +1637,7 @@ void sweepBatchInto(const Medium& m, const std::vector<const Job*>& jobs, int r,
     // layer by layer, through one set of planes gathered once per layer for all of them.
     const double V = m.voxelVolume();
     const double alb[3] = {m.albedo.r, m.albedo.g, m.albedo.b};
+    const bool bySlice = batchSweepsBySlice(linear, r);
     bool assign = true;  // the first sign's deposits overwrite phi, the second's add to them
     for (int sign : {1, -1}) {
         if (std::none_of(jobs.begin(), jobs.end(), [&](const Job* j) { return j->sign == sign; })) continue;
@@ -1621,7 +1656,7 @@ void sweepBatchInto(const Medium& m, const std::vector<const Job*>& jobs, int r,
         for (int l = 0; l < layers; ++l) {
             const int layer = sweeps[0]->layerAt(l);
             const bool any = planes.gather(layer, first);
-            for (auto& sw : sweeps) sw->sweepLayer(layer, any);
+            sweepLayerOfBatch(sweeps, layer, any, bySlice);
             if constexpr (linear) {
                 if (any && assign) planes.scatterLinear<true>(layer, depositPerWeight, phi, sca, src);
                 else if (any) planes.scatterLinear(layer, depositPerWeight, phi, sca, src);
