@@ -238,14 +238,14 @@ TEST(SolvePlan, TwoGridTailShapedWhereCoarseVoxelsAreThick) {
     SceneSummary sc = smallScene();
     sc.dims[0] = sc.dims[1] = sc.dims[2] = 64;
     sc.storedVoxels = 64 * 64 * 64;
-    sc.maxVoxelTau = 1.5;
+    sc.maxVoxelTau = 0.6;
     const SolvePlan thick = planSolve(sc, LpmSettings{}, 2);
     EXPECT_TRUE(thick.shapedTail);
-    EXPECT_TRUE(says(thick, "two-grid tail shaped inside coarse voxels: coarse voxels up to optical depth 3 > 2"));
-    sc.maxVoxelTau = 0.9;
+    EXPECT_TRUE(says(thick, "two-grid tail shaped inside coarse voxels: coarse voxels up to optical depth 1.2 > 1"));
+    sc.maxVoxelTau = 0.45;
     const SolvePlan thin = planSolve(sc, LpmSettings{}, 2);
     EXPECT_FALSE(thin.shapedTail);
-    EXPECT_TRUE(says(thin, "flat two-grid tail: coarse voxels up to optical depth 1.8 <= 2"));
+    EXPECT_TRUE(says(thin, "flat two-grid tail: coarse voxels up to optical depth 0.9 <= 1"));
     LpmSettings shaped;
     shaped.shapedCoarseTail = 1;
     EXPECT_TRUE(planSolve(sc, shaped, 2).shapedTail);

@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# Two lpmbake binaries side by side on the thick 1M-voxel scenes (the linear source and the
+# shaped two-grid tail; docs/performance.md, sessions 45-46): the Mantaflow smoke at
+# density scale 150 (albedo 0.9 and 0.99) and plume-1M at density scale 4, baked by each
+# binary in turn, repeated, so the ratios come from one run. Prints per bake the total,
+# solve and stage times (s) and peak RSS (MiB), and per scene whether the two binaries'
+# grids are bit-identical (`lpmbake info --digest`).
+#   scripts/bench/thick_ab.sh OLD-LPMBAKE [--reps N] [--threads N]
+# The volumes come from scripts/bench/scale.sh (--mantaflow for the smoke).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+[ $# -ge 1 ] || { echo "usage: thick_ab.sh OLD-LPMBAKE [--reps N] [--threads N]" >&2; exit 2; }
+old="$1"; shift
+reps=2; threads=2
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --reps) reps="$2"; shift ;;
+    --threads) threads="$2"; shift ;;
+    *) echo "usage: thick_ab.sh OLD-LPMBAKE [--reps N] [--threads N]" >&2; exit 2 ;;
+  esac
+  shift
+done
+new=build/baker/lpmbake
+dir=out/bench/thick_ab; mkdir -p "$dir"
+smoke=out/bench/scale/smoke-1M-mantaflow.vdb; plume=out/bench/scale/plume-1M.vdb
+for f in "$smoke" "$plume"; do
+  [ -f "$f" ] || { echo "thick_ab.sh: $f is missing: run scripts/bench/scale.sh --quick --mantaflow first" >&2; exit 1; }
+done
+scenes=("smoke-a0.9|$smoke|--albedo 0.9 --density-scale 150 --up-axis z"
+        "smoke-a0.99|$smoke|--albedo 0.99 --density-scale 150 --up-axis z"
+        "plume-ds4|$plume|--albedo 0.9 --density-scale 4")
+for rep in $(seq "$reps"); do
+  for scene in "${scenes[@]}"; do
+    IFS='|' read -r name vdb args <<<"$scene"
+    for which in old new; do
+      bin=$new; [ "$which" = old ] && bin=$old
+      # shellcheck disable=SC2086
+      "$bin" "$vdb" --env data/env/rooftop_small.hdr $args --threads "$threads" \
+        --stats "$dir/$name.$which.json" -o "$dir/$name.$which.vdb" 2>/dev/null
+      python3 - "$dir/$name.$which.json" "$name" "$which" "$rep" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+t, s = d["timings_s"], d["stages_s"]
+stages = " ".join(f"{k}={v:.2f}" for k, v in s.items() if "segments" not in k and v > 0)
+print(f"{sys.argv[2]} {sys.argv[3]} rep {sys.argv[4]}: total {t['total']:.2f} solve {t['solve']:.2f} {stages} "
+      f"peak {d['peak_rss_mib']:.0f}")
+PY
+    done
+    if [ "$rep" = 1 ]; then
+      a=$("$new" info --digest "$dir/$name.old.vdb" | tail -1); b=$("$new" info --digest "$dir/$name.new.vdb" | tail -1)
+      echo "$name grids: $([ "$a" = "$b" ] && echo "bit-identical ($a)" || echo "differ ($a, $b)")"
+    fi
+  done
+done
