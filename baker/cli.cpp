@@ -341,10 +341,11 @@ void addSolverOptions(CLI::App& app, Args& a) {
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->group(gS);
-    app.add_option("--two-grid-tail", a.tail,
-                   "how the two-grid cycle brings its coarse tail back into each coarse voxel: auto (shaped where a "
-                   "coarse voxel may be optically thicker than 1), shaped (by the first residual its children hold: "
-                   "closer to full resolution voxel by voxel, 1.5-2x the time in thick media), flat")
+    app.add_option(
+           "--two-grid-tail", a.tail,
+           "how the two-grid cycle brings its coarse tail back into each coarse voxel: auto (shaped where a "
+           "coarse voxel may be optically thicker than 1), shaped (by the first residual its children hold: "
+           "closer to full resolution voxel by voxel, 1.5-2.2x the time where coarse voxels are thicker than 1), flat")
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "shaped", "flat"}))
         ->group(gS);
