@@ -325,8 +325,8 @@ void addSolverOptions(CLI::App& app, Args& a) {
         ->default_val(a.b.solver.subdivide)
         ->group(gS);
     app.add_option("--multires", a.multires,
-                   "solve the higher scattering orders on a 2x coarser grid: auto (when the block stores at least "
-                   "65536 voxels), on, off (docs/multires.md)")
+                   "solve the higher scattering orders on a 2x coarser grid: auto (when the block stores more "
+                   "than 32768 voxels), on, off (docs/multires.md)")
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->group(gS);

@@ -186,6 +186,13 @@ TEST(SolvePlan, LargeBlocksIterateHigherOrdersOnTheCoarseGrid) {
     EXPECT_EQ(small.coarseFrom, 0);
     EXPECT_EQ(small.raysHigher, 2);
     EXPECT_TRUE(says(small, "full resolution for every order"));
+    // The line sits just above 32^3, so the 32^3 MC comparison set measures full
+    // resolution, and a block one tile larger (a radius-16 puff stores 49664) runs two grids.
+    sc.dims[0] = sc.dims[1] = sc.dims[2] = 40;
+    sc.storedVoxels = 32 * 32 * 32;
+    EXPECT_EQ(planSolve(sc, LpmSettings{}, 2).coarseFrom, 0);
+    sc.storedVoxels = 32 * 32 * 32 + 8 * 8 * 8;
+    EXPECT_EQ(planSolve(sc, LpmSettings{}, 2).coarseFrom, 2);
     // The coarse grid of a two-grid solve plans no light passes, no SH, no delta-M.
     sc.continuation = true;
     sc.g = 0.8;
