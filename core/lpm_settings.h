@@ -60,8 +60,8 @@ struct LpmSettings {
     int multires = -1;                  ///< higher orders on a 2x coarser grid: -1 auto (when the block stores
                                         ///< at least multiresMinVoxels voxels), 0 off, 1 on
     int multiresAfter = 1;              ///< passes at full resolution before the coarse grid takes over (>= 1)
-    int multiresMinVoxels = (1 << 15) + 1; ///< auto threshold on stored voxels: more than 32^3 (the MC
-                                           ///< comparison set keeps measuring full resolution)
+    int multiresMinVoxels = 32769;      ///< auto threshold on stored voxels: more than 32^3 (the MC
+                                        ///< comparison set keeps measuring full resolution)
     int multiresDirections = -1;        ///< directions per face on the coarse grid: -1 auto (n/2 when the
                                         ///< bins still divide it and it is >= 2, else n)
     int separableSource = -1;           ///< fine-grid sources of the two-grid solve held separably (each
