@@ -61,7 +61,10 @@ private:
                                     std::vector<float> uc, const Residual& left, bool shapedTail, int cycle, int& p,
                                     TwoGridCount& count, const MassRows* rows = nullptr);
     bool cycleConverged(const Residual& r, bool shapedTail) const;
-    /// -v: one cycle's residual after its fine pass (signed and absolute power).
+    /// s_.shapedCycleSmoothing physical passes r <- K r of a shaped cycle's residual.
+    Residual smoothResidual(std::vector<float>& r, int& p);
+    /// -v: one cycle's residual after its fine pass (signed and absolute power); cycle -1:
+    /// after a smoothing pass.
     void reportCycle(int cycle, const Residual& left) const;
     void reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
                        const Residual& r, bool shapedTail, Clock::time_point start);

@@ -132,7 +132,9 @@ void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles
                   "coarse orders and one fine pass, %d coarse passes, tail %s; source left %.3g of the input "
                   "(absolute %.3g)",
                   mc.nx, mc.ny, mc.nz, mc.voxelCount(), cs.directionsPerFace, cycles, count.coarsePasses,
-                  shapedTail ? "shaped by the fine source" : "flat",
+                  !shapedTail                     ? "flat"
+                  : s_.shapedCycleSmoothing > 0 ? "shaped by the fine source, each residual smoothed by fine passes"
+                                                : "shaped by the fine source",
                   res_.input > 0 ? std::fabs(r.power) / res_.input : 0.0,
                   res_.input > 0 ? r.absolute / res_.input : 0.0);
     if (s_.progress)
@@ -144,8 +146,12 @@ void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles
 void LpmSolve::reportCycle(int cycle, const Residual& left) const {
     if (!s_.progress || !(res_.input > 0)) return;
     char buf[160];
-    std::snprintf(buf, sizeof buf, "two-grid cycle %d: residual %.3g of the input (absolute %.3g)", cycle + 1,
-                  left.power / res_.input, left.absolute / res_.input);
+    if (cycle < 0)
+        std::snprintf(buf, sizeof buf, "two-grid smoothing pass: residual %.3g of the input (absolute %.3g)",
+                      left.power / res_.input, left.absolute / res_.input);
+    else
+        std::snprintf(buf, sizeof buf, "two-grid cycle %d: residual %.3g of the input (absolute %.3g)", cycle + 1,
+                      left.power / res_.input, left.absolute / res_.input);
     s_.progress(buf);
 }
 
@@ -190,12 +196,36 @@ void LpmSolve::continueOnCoarse(int firstPass) {
         left = {sourcePower(r), sourcePower(r, true)};
         res_.passes.back().scattered = std::fabs(left.power);
         reportCycle(cycles, left);
+        if (!cycleConverged(left, shaped) && shaped) left = smoothResidual(r, p);
         if (cycleConverged(left, shaped)) {
             ++cycles;
             break;
         }
     }
     reportTwoGrid(mc, cs, cycles, count, left, shaped, tp);
+}
+
+// Post-smoothing of a shaped cycle (docs/multires.md, "Smoothing"): plain source iteration
+// on the fine grid, r <- K r, each pass physical (its deposits are S's share of r). The
+// residual a coarse correction leaves changes sign between the lit surface and the
+// interior (absolute power up to 4x its signed power's input); K, which smooths, takes
+// most of that away, and the next coarse solve starts from a smooth residual. Returns the
+// new residual's powers.
+LpmSolve::Residual LpmSolve::smoothResidual(std::vector<float>& r, int& p) {
+    Residual left{sourcePower(r), sourcePower(r, true)};
+    for (int k = 0; k < s_.shapedCycleSmoothing && p < s_.maxOrders; ++k) {
+        const auto tf = Clock::now();
+        assignZeroed(next_, N_ * perVoxel_);
+        Tally t;
+        runner_->run(sourceJobs(r), r_, t, true, next_);
+        recordPass(p++, t, tf);
+        std::swap(r, next_);
+        next_ = std::vector<float>();
+        left = {sourcePower(r), sourcePower(r, true)};
+        res_.passes.back().scattered = std::fabs(left.power);
+        reportCycle(-1, left);
+    }
+    return left;
 }
 
 // The tail's weights inside each coarse voxel from the first residual r (core/tail_shape.h):
