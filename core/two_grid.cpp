@@ -132,7 +132,7 @@ void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles
                   "coarse orders and one fine pass, %d coarse passes, tail %s; source left %.3g of the input "
                   "(absolute %.3g)",
                   mc.nx, mc.ny, mc.nz, mc.voxelCount(), cs.directionsPerFace, cycles, count.coarsePasses,
-                  !shapedTail                     ? "flat"
+                  !shapedTail                   ? "flat"
                   : s_.shapedCycleSmoothing > 0 ? "shaped by the fine source, each residual smoothed by fine passes"
                                                 : "shaped by the fine source",
                   res_.input > 0 ? std::fabs(r.power) / res_.input : 0.0,
