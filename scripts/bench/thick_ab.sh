@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Two lpmbake binaries side by side on the thick 1M-voxel scenes (the linear source and the
-# shaped two-grid tail; docs/performance.md, sessions 45-46): the Mantaflow smoke at
-# density scale 150 (albedo 0.9 and 0.99) and plume-1M at density scale 4, baked by each
+# shaped two-grid tail; docs/performance.md, sessions 45-47): the Mantaflow smoke at
+# density scale 150 (albedo 0.9 and 0.99), plume-1M at density scale 4 and the 1M cumulus
+# at g = 0, albedo 0.99, density scale 0.6 (coarse voxels up to depth 1.2), baked by each
 # binary in turn, repeated, so the ratios come from one run. Prints per bake the total,
 # solve and stage times (s) and peak RSS (MiB), and per scene whether the two binaries'
 # grids are bit-identical (`lpmbake info --digest`).
@@ -23,12 +24,14 @@ done
 new=build/baker/lpmbake
 dir=out/bench/thick_ab; mkdir -p "$dir"
 smoke=out/bench/scale/smoke-1M-mantaflow.vdb; plume=out/bench/scale/plume-1M.vdb
-for f in "$smoke" "$plume"; do
+cumulus=out/bench/scale/cumulus-1M-g0.6-a0.99.vdb
+for f in "$smoke" "$plume" "$cumulus"; do
   [ -f "$f" ] || { echo "thick_ab.sh: $f is missing: run scripts/bench/scale.sh --quick --mantaflow first" >&2; exit 1; }
 done
 scenes=("smoke-a0.9|$smoke|--albedo 0.9 --density-scale 150 --up-axis z"
         "smoke-a0.99|$smoke|--albedo 0.99 --density-scale 150 --up-axis z"
-        "plume-ds4|$plume|--albedo 0.9 --density-scale 4")
+        "plume-ds4|$plume|--albedo 0.9 --density-scale 4"
+        "cumulus-a0.99|$cumulus|--albedo 0.99 --density-scale 0.6")
 for rep in $(seq "$reps"); do
   for scene in "${scenes[@]}"; do
     IFS='|' read -r name vdb args <<<"$scene"
