@@ -79,7 +79,7 @@ void LpmSettings::validate() const {
     requireAutoOrRange("shapedCoarseTail", shapedCoarseTail, 0, 1);
     if (!(shapedTailAbove >= 0))
         throw SettingError("LPM", "shapedTailAbove", "must be >= 0, got " + std::to_string(shapedTailAbove));
-    requireRange("shapedCycleSmoothing", shapedCycleSmoothing, 0, 4);
+    requireRange("cycleSmoothing", cycleSmoothing, 0, 4);
     requireRange("subdivide", subdivide, 1, kMaxSubdivide);
 }
 

@@ -61,13 +61,13 @@ private:
                                     std::vector<float> uc, const Residual& left, bool shapedTail, int cycle, int& p,
                                     TwoGridCount& count, const MassRows* rows = nullptr);
     bool cycleConverged(const Residual& r, bool shapedTail) const;
-    /// s_.shapedCycleSmoothing physical passes r <- K r of a shaped cycle's residual.
+    /// s_.cycleSmoothing physical passes r <- K r of a cycle's residual.
     Residual smoothResidual(std::vector<float>& r, int& p);
     /// -v: one cycle's residual after its fine pass (signed and absolute power); cycle -1:
     /// after a smoothing pass.
     void reportCycle(int cycle, const Residual& left) const;
     void reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
-                       const Residual& r, bool shapedTail, Clock::time_point start);
+                       const Residual& r, bool shapedTail, bool smoothed, Clock::time_point start);
     /// One fine pass with separable sources: of the light jobs (src null) or of `src`; its
     /// deposits fold into the SH result and sep_->next, less `takeFromNext` (a coarse part
     /// held as SeparableSource::offset; SeparableFold::finish) when given.

@@ -232,11 +232,7 @@ void planTailShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan& p
                  (s.shapedCoarseTail == 1
                       ? " (requested)"
                       : format(" > %g: a flat tail would give their dim children the lit ones' mean",
-                               s.shapedTailAbove)) +
-                 (s.shapedCycleSmoothing > 0
-                      ? format("; each cycle's residual then swept %d more time(s) at full resolution",
-                               s.shapedCycleSmoothing)
-                      : std::string())});
+                               s.shapedTailAbove))});
     else
         plan.decisions.push_back({"flat two-grid tail", s.shapedCoarseTail == 0
                                                             ? std::string("requested")

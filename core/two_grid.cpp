@@ -7,9 +7,9 @@
 // the coarse grid got wrong, and the next cycle distributes it, until its power falls
 // below the tolerance (at most kMaxCycles cycles). The tail is brought back shaped by the
 // first residual (core/tail_shape.h), the coarse solves measure the residual, which
-// changes sign between voxels, by its absolute power, and each residual is smoothed by a
-// plain source-iteration pass before the next coarse solve (docs/multires.md, "Shaped
-// tail", "Smoothing").
+// changes sign between voxels, by its absolute power (docs/multires.md, "Shaped tail").
+// Each residual is smoothed by a plain source-iteration pass before the next coarse solve
+// ("Smoothing"; not with separable sources).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -87,6 +87,14 @@ LpmSettings coarseSettings(const LpmSettings& s, const SolvePlan& plan, const st
     return cs;
 }
 
+/// The tail's words in the two-grid report.
+const char* tailWords(bool shaped, bool smoothed) {
+    if (shaped)
+        return smoothed ? "shaped by the fine source, each residual smoothed by fine passes"
+                        : "shaped by the fine source";
+    return smoothed ? "flat, each residual smoothed by fine passes" : "flat";
+}
+
 }  // namespace
 
 bool LpmSolve::cycleConverged(const Residual& r, bool shapedTail) const {
@@ -125,7 +133,7 @@ std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, con
 }
 
 void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
-                             const Residual& r, bool shapedTail, Clock::time_point start) {
+                             const Residual& r, bool shapedTail, bool smoothed, Clock::time_point start) {
     res_.converged = count.converged && cycleConverged(r, shapedTail);
     res_.stoppedAtCycleCap =
         !res_.converged && cycles >= maxCycles(shapedTail) && int(res_.passes.size()) < s_.maxOrders;
@@ -135,10 +143,7 @@ void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles
                   "coarse orders and one fine pass, %d coarse passes, tail %s; source left %.3g of the input "
                   "(absolute %.3g)",
                   mc.nx, mc.ny, mc.nz, mc.voxelCount(), cs.directionsPerFace, cycles, count.coarsePasses,
-                  !shapedTail                   ? "flat"
-                  : s_.shapedCycleSmoothing > 0 ? "shaped by the fine source, each residual smoothed by fine passes"
-                                                : "shaped by the fine source",
-                  res_.input > 0 ? std::fabs(r.power) / res_.input : 0.0,
+                  tailWords(shapedTail, smoothed), res_.input > 0 ? std::fabs(r.power) / res_.input : 0.0,
                   res_.input > 0 ? r.absolute / res_.input : 0.0);
     if (s_.progress)
         s_.progress("two-grid: " + std::to_string(std::chrono::duration<double>(Clock::now() - start).count()) + " s");
@@ -199,16 +204,16 @@ void LpmSolve::continueOnCoarse(int firstPass) {
         left = {sourcePower(r), sourcePower(r, true)};
         res_.passes.back().scattered = std::fabs(left.power);
         reportCycle(cycles, left);
-        if (!cycleConverged(left, shaped) && shaped) left = smoothResidual(r, p);
+        if (!cycleConverged(left, shaped)) left = smoothResidual(r, p);
         if (cycleConverged(left, shaped)) {
             ++cycles;
             break;
         }
     }
-    reportTwoGrid(mc, cs, cycles, count, left, shaped, tp);
+    reportTwoGrid(mc, cs, cycles, count, left, shaped, s_.cycleSmoothing > 0, tp);
 }
 
-// Post-smoothing of a shaped cycle (docs/multires.md, "Smoothing"): plain source iteration
+// Post-smoothing of a cycle (docs/multires.md, "Smoothing"): plain source iteration
 // on the fine grid, r <- K r, each pass physical (its deposits are S's share of r). The
 // residual a coarse correction leaves changes sign between the lit surface and the
 // interior (absolute power up to 4x its signed power's input); K, which smooths, takes
@@ -216,7 +221,7 @@ void LpmSolve::continueOnCoarse(int firstPass) {
 // new residual's powers.
 LpmSolve::Residual LpmSolve::smoothResidual(std::vector<float>& r, int& p) {
     Residual left{sourcePower(r), sourcePower(r, true)};
-    for (int k = 0; k < s_.shapedCycleSmoothing && p < s_.maxOrders; ++k) {
+    for (int k = 0; k < s_.cycleSmoothing && p < s_.maxOrders; ++k) {
         const auto tf = Clock::now();
         assignZeroed(next_, N_ * perVoxel_);
         Tally t;
@@ -298,7 +303,7 @@ void LpmSolve::continueOnCoarseSeparable(int firstPass) {
             break;
         }
     }
-    reportTwoGrid(mc, cs, cycles, count, left, false, tp);
+    reportTwoGrid(mc, cs, cycles, count, left, false, false, tp);
 }
 
 }  // namespace lpm

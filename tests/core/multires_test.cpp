@@ -168,7 +168,7 @@ TEST(Multires, SaysWhetherTheCycleCapOrTheOrderCapStoppedIt) {
     strict.multires = 1;
     strict.tolerance = 1e-9;  // below what the cycles' single-precision residual reaches
     // without post-smoothing (whose source-iteration passes reach it: docs/multires.md)
-    strict.shapedCycleSmoothing = 0;
+    strict.cycleSmoothing = 0;
     const LpmResult cycles = solveLpm(sc.medium, sc.lights, strict);
     EXPECT_FALSE(cycles.converged);
     EXPECT_TRUE(cycles.stoppedAtCycleCap);

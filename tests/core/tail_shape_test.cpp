@@ -207,7 +207,7 @@ TEST(TailShape, SmoothingBringsAThickHighAlbedoCycleCloserToItsFixedPoint) {
     ref.tolerance = 1e-5;
     plain.multires = smoothed.multires = 1;
     plain.shapedCoarseTail = smoothed.shapedCoarseTail = 1;
-    plain.shapedCycleSmoothing = 0;
+    plain.cycleSmoothing = 0;
     const LpmResult full = solveLpm(sc.medium, sc.lights, ref);
     const LpmResult a = solveLpm(sc.medium, sc.lights, plain), b = solveLpm(sc.medium, sc.lights, smoothed);
     const double plainError = band0RelativeRms(sc.medium, a, full), smoothError = band0RelativeRms(sc.medium, b, full);
