@@ -44,8 +44,7 @@ struct LpmSettings {
                                           ///< residual the children hold (core/tail_shape.h)
     double shapedTailAbove = 1.0;         ///< auto threshold: twice the largest fine voxel's optical depth
     int cycleSmoothing = 1;               ///< source-iteration passes of each two-grid cycle's residual before
-                                          ///< the next coarse solve (docs/multires.md, "Smoothing"; not with
-                                          ///< separable sources); 0 = none
+                                          ///< the next coarse solve (docs/multires.md, "Smoothing"); 0 = none
     /// Set by the two-grid cycle for its coarse solves with a shaped tail: each pass's source
     /// is measured by its absolute power (the residual they distribute changes sign between
     /// voxels, and a signed sum would end them after a pass; docs/multires.md, "Shaped tail").

@@ -63,6 +63,7 @@ private:
     bool cycleConverged(const Residual& r, bool shapedTail) const;
     /// s_.cycleSmoothing physical passes r <- K r of a cycle's residual.
     Residual smoothResidual(std::vector<float>& r, int& p);
+    Residual smoothSeparableResidual(SeparableSource& r, int& p);
     /// -v: one cycle's residual after its fine pass (signed and absolute power); cycle -1:
     /// after a smoothing pass.
     void reportCycle(int cycle, const Residual& left) const;

@@ -3,21 +3,24 @@
 # shaped two-grid tail; docs/performance.md, sessions 45-47): the Mantaflow smoke at
 # density scale 150 (albedo 0.9 and 0.99), plume-1M at density scale 4 and the 1M cumulus
 # at g = 0, albedo 0.99, density scale 0.6 (coarse voxels up to depth 1.2), baked by each
-# binary in turn, repeated, so the ratios come from one run. Prints per bake the total,
+# binary in turn, repeated, so the ratios come from one run. --anisotropic bakes instead
+# the separable-source scenes (g = 0.6): the smoke at density scale 150, albedo 0.9, and the
+# cumulus at albedo 0.99. Prints per bake the total,
 # solve and stage times (s) and peak RSS (MiB), and per scene whether the two binaries'
 # grids are bit-identical (`lpmbake info --digest`).
-#   scripts/bench/thick_ab.sh OLD-LPMBAKE [--reps N] [--threads N]
+#   scripts/bench/thick_ab.sh OLD-LPMBAKE [--reps N] [--threads N] [--anisotropic]
 # The volumes come from scripts/bench/scale.sh (--mantaflow for the smoke).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-[ $# -ge 1 ] || { echo "usage: thick_ab.sh OLD-LPMBAKE [--reps N] [--threads N]" >&2; exit 2; }
+[ $# -ge 1 ] || { echo "usage: thick_ab.sh OLD-LPMBAKE [--reps N] [--threads N] [--anisotropic]" >&2; exit 2; }
 old="$1"; shift
-reps=2; threads=2
+reps=2; threads=2; anisotropic=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --reps) reps="$2"; shift ;;
     --threads) threads="$2"; shift ;;
-    *) echo "usage: thick_ab.sh OLD-LPMBAKE [--reps N] [--threads N]" >&2; exit 2 ;;
+    --anisotropic) anisotropic=1 ;;
+    *) echo "usage: thick_ab.sh OLD-LPMBAKE [--reps N] [--threads N] [--anisotropic]" >&2; exit 2 ;;
   esac
   shift
 done
@@ -32,6 +35,9 @@ scenes=("smoke-a0.9|$smoke|--albedo 0.9 --density-scale 150 --up-axis z"
         "smoke-a0.99|$smoke|--albedo 0.99 --density-scale 150 --up-axis z"
         "plume-ds4|$plume|--albedo 0.9 --density-scale 4"
         "cumulus-a0.99|$cumulus|--albedo 0.99 --density-scale 0.6")
+[ "$anisotropic" = 1 ] &&
+  scenes=("smoke-g0.6|$smoke|--albedo 0.9 --g 0.6 --density-scale 150 --up-axis z"
+          "cumulus-g0.6-a0.99|$cumulus|--albedo 0.99 --g 0.6 --density-scale 0.6")
 for rep in $(seq "$reps"); do
   for scene in "${scenes[@]}"; do
     IFS='|' read -r name vdb args <<<"$scene"
