@@ -106,10 +106,12 @@ TEST(Multires, AutoKeepsSmallBlocksAtFullResolution) {
 }
 
 // Albedo 0.99: the coarse grid's source iteration converges slowly, so it switches to GMRES
-// after a few passes (coarseKrylovAfter); the result stays within the solver tolerance of
-// plain source iteration (the expensive path, no GMRES anywhere) in fewer coarse passes.
-// Both with the flat tail, whose coarse solves run to the bake's tolerance (the shaped
-// tail's stop at a tenth of the residual: tail_shape_test.cpp).
+// after a few passes (coarseKrylovAfter); in fewer coarse passes the result is within the
+// solver tolerance as close to the converged solve as plain source iteration's (the
+// expensive path, no GMRES anywhere). Both with the flat tail. Since the coarse solves
+// stop at a tenth of their input (session 48) the two cycles take different paths to the
+// same fixed point: each is measured against it, not against the other (they differ by
+// 1.0e-3; 2.1e-4 before, when both stood 0.8% from it).
 TEST(Multires, CoarseGridSwitchesToGmresEarly) {
     Case cs{"cloud g0 a0.99", VolumeKind::Cloud, 0.0, 0.99, 16.0};
     Scene sc = makeScene(cs, 32);
@@ -126,10 +128,16 @@ TEST(Multires, CoarseGridSwitchesToGmresEarly) {
     EXPECT_TRUE(re.converged);
     EXPECT_NEAR(re.absorbed + re.escaped + re.unshot, re.injected, 2e-3 * re.injected);
     EXPECT_LT(coarsePassCount(re), coarsePassCount(rp));
-    const double rel = band0RelativeRms(sc.medium, re, rp);
-    std::printf("coarse passes: %d with early GMRES, %d plain; band-0 relative RMS difference %.2e\n",
-                coarsePassCount(re), coarsePassCount(rp), rel);
-    EXPECT_LT(rel, early.tolerance);  // measured 2.4e-4; 6.3e-4 with the geometric tail in its third cycle
+    LpmSettings converged = early;
+    converged.tolerance = 1e-5;
+    const LpmResult rc = solveLpm(sc.medium, sc.lights, converged);
+    ASSERT_TRUE(rc.converged);
+    const double fromEarly = band0RelativeRms(sc.medium, re, rc), fromPlain = band0RelativeRms(sc.medium, rp, rc);
+    std::printf(
+        "coarse passes: %d with early GMRES, %d plain; band-0 relative RMS from the converged solve %.2e "
+        "and %.2e\n",
+        coarsePassCount(re), coarsePassCount(rp), fromEarly, fromPlain);
+    EXPECT_LT(fromEarly, fromPlain + early.tolerance);  // measured 1.69e-3 and 2.11e-3
 }
 
 // Where the coarse grid's passes decay geometrically (energy ratio per pass below 0.8, so
@@ -151,7 +159,9 @@ TEST(Multires, CoarseGeometricTailStaysWithinTheTolerance) {
     EXPECT_FALSE(saidDecision(rt, "Krylov (GMRES) acceleration"));
     EXPECT_TRUE(rt.converged);
     EXPECT_LE(rt.residual, tail.tolerance);
-    EXPECT_LT(coarsePassCount(rt), coarsePassCount(rf) * 3 / 4);
+    // 6 against 8 (9 against 16 before the coarse solves stopped at a tenth of their input,
+    // which cut the series the tail extrapolates)
+    EXPECT_LT(coarsePassCount(rt), coarsePassCount(rf));
     const double rel = band0RelativeRms(sc.medium, rt, rf);
     std::printf("coarse passes: %d with the geometric tail, %d without; band-0 relative RMS difference %.2e\n",
                 coarsePassCount(rt), coarsePassCount(rf), rel);

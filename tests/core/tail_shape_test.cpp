@@ -224,3 +224,35 @@ TEST(TailShape, SmoothingBringsAThickHighAlbedoCycleCloserToItsFixedPoint) {
     EXPECT_LE(finePasses(b), 2 * finePasses(a));
     EXPECT_NEAR(b.absorbed + b.escaped + b.unshot, b.injected, 2e-3 * b.injected);
 }
+
+// Separable fine sources smooth their cycles too (core/two_grid.cpp,
+// smoothSeparableResidual): on the thick plume at g = 0.6 the smoothed two-grid solve is
+// closer to the full-resolution solve with the same rays than the plain cycles (measured
+// 0.72% against 0.81% band 0, 23 passes against 25, residual 2.4e-5 against 2.1e-4), it
+// says so, and the energy balances.
+TEST(TailShape, SeparableCyclesSmoothTheirResidual) {
+    Case cs{"thick plume", VolumeKind::Plume, 0.6, 0.9, 64.0};
+    Scene sc = makeScene(cs, 32);
+    sc.lights.env = &sc.sky;
+    LpmSettings ref, plain, smoothed;
+    ref.multires = 0;
+    ref.raysHigherOrders = 1;
+    ref.linearSource = 0;
+    ref.tolerance = 1e-5;
+    plain.multires = smoothed.multires = 1;
+    plain.linearSource = smoothed.linearSource = 0;
+    plain.cycleSmoothing = 0;
+    const LpmResult full = solveLpm(sc.medium, sc.lights, ref);
+    const LpmResult a = solveLpm(sc.medium, sc.lights, plain), b = solveLpm(sc.medium, sc.lights, smoothed);
+    const double plainError = band0RelativeRms(sc.medium, a, full), smoothError = band0RelativeRms(sc.medium, b, full);
+    std::printf("against full resolution: plain %.5f (%zu passes, residual %.3g), smoothed %.5f (%zu, %.3g)\n",
+                plainError, a.passes.size(), a.unshot / a.injected, smoothError, b.passes.size(),
+                b.unshot / b.injected);
+    EXPECT_TRUE(saidDecision(b, "separable fine sources"));
+    EXPECT_TRUE(saidDecision(b, "each residual smoothed by fine passes"));
+    EXPECT_FALSE(saidDecision(a, "smoothed"));
+    EXPECT_LT(smoothError, plainError);
+    EXPECT_LE(b.passes.size(), a.passes.size());
+    EXPECT_TRUE(b.converged);
+    EXPECT_NEAR(b.absorbed + b.escaped + b.unshot, b.injected, 2e-3 * b.injected);
+}
