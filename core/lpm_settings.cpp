@@ -80,6 +80,9 @@ void LpmSettings::validate() const {
     if (!(shapedTailAbove >= 0))
         throw SettingError("LPM", "shapedTailAbove", "must be >= 0, got " + std::to_string(shapedTailAbove));
     requireRange("cycleSmoothing", cycleSmoothing, 0, 4);
+    if (!(extrapolationTolerance >= 0) || !std::isfinite(extrapolationTolerance))
+        throw SettingError("LPM", "extrapolationTolerance",
+                           "must be finite and >= 0, got " + std::to_string(extrapolationTolerance));
     requireRange("subdivide", subdivide, 1, kMaxSubdivide);
 }
 

@@ -49,6 +49,11 @@ struct LpmSettings {
     /// is measured by its absolute power (the residual they distribute changes sign between
     /// voxels, and a signed sum would end them after a pass; docs/multires.md, "Shaped tail").
     bool absoluteSourcePower = false;
+    /// Set by the two-grid cycle for its coarse solves: the share of the input within which
+    /// a geometric tail's estimated error must stay (0: the tolerance). The cycle stops its
+    /// coarse solves at a tenth of their input, but a series extrapolated from there must
+    /// still be as good as the bake's tolerance asks (docs/multires.md, "Geometric tail").
+    double extrapolationTolerance = 0;
     int linearSource = -1;              ///< -1 auto (on when a voxel is optically thicker than
                                         ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
                                         ///< inside each voxel (linear characteristics; 4x the unshot memory)

@@ -240,7 +240,9 @@ void LpmSolve::addToSourceSum(const std::vector<float>& src, float scale) {
 // the next cycle (docs/multires.md, "Geometric tail"). The estimate's error is the drift
 // of rho through d/drho [rho / (1 - rho)] = 1 / (1 - rho)^2, taken 3 times (the drift
 // goes on over the passes skipped: 3x covered it on the 1M plume at g = 0.6); it must be
-// within the tolerance, and rho at most 0.9 (nearer 1 GMRES does better). On one grid (no
+// within the tolerance (for a coarse solve, the bake's share of its input, though the
+// solve itself stops at a tenth: LpmSettings::extrapolationTolerance), and rho at most 0.9
+// (nearer 1 GMRES does better). On one grid (no
 // coarse continuation, no separable sources) the same test, within a tenth of the
 // tolerance (nothing corrects what the series misses there), ends the solve with one last
 // pass of next / (1 - rho) (finishWithGeometricTail; docs/lpm_solver.md).
@@ -254,7 +256,8 @@ bool LpmSolve::extrapolateTail(double last, double ratio) {
     const double drift = std::fabs(ratio - res_.passes[n - 2].scattered / before);
     const double error = 3.0 * last * drift / ((1.0 - ratio) * (1.0 - ratio));
     const double share = initialSource_ ? 1.0 : 0.1;
-    if (!(error <= share * s_.tolerance * res_.input)) return false;
+    const double tolerance = s_.extrapolationTolerance > 0 ? s_.extrapolationTolerance : s_.tolerance;
+    if (!(error <= share * tolerance * res_.input)) return false;
     tailFactor_ = float(1.0 / (1.0 - ratio));
     extrapolatedError_ = error;
     finishWithTail_ = !initialSource_;

@@ -112,7 +112,9 @@ std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, con
                                           int& p, TwoGridCount& count, const MassRows* rows) {
     cs.maxOrders = std::max(1, s_.maxOrders - p);
     const double measure = shapedTail ? left.absolute : std::fabs(left.power);
-    cs.tolerance = std::max(measure > 0 ? s_.tolerance * res_.input / measure : s_.tolerance, kCoarseShare);
+    const double bakeShare = measure > 0 ? s_.tolerance * res_.input / measure : s_.tolerance;
+    cs.tolerance = std::max(bakeShare, kCoarseShare);
+    cs.extrapolationTolerance = bakeShare;
     cs.absoluteSourcePower = shapedTail;
     const size_t width = size_t(nb_) * 3;
     const bool byVoxel = rows && coarsePlan.linearSource;

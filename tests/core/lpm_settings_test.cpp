@@ -45,6 +45,9 @@ TEST(LpmSettings, EachRuleNamesItsField) {
     EXPECT_EQ(rejectedField([](LpmSettings& s) { s.envHotShare = 1.5; }), "envHotShare");
     EXPECT_EQ(rejectedField([](LpmSettings& s) { s.multiresAfter = 0; }), "multiresAfter");
     EXPECT_EQ(rejectedField([](LpmSettings& s) { s.subdivide = kMaxSubdivide + 1; }), "subdivide");
+    EXPECT_EQ(rejectedField([](LpmSettings& s) { s.cycleSmoothing = 5; }), "cycleSmoothing");
+    EXPECT_EQ(rejectedField([](LpmSettings& s) { s.extrapolationTolerance = -1; }), "extrapolationTolerance");
+    EXPECT_EQ(rejectedField([](LpmSettings& s) { s.extrapolationTolerance = INFINITY; }), "extrapolationTolerance");
 }
 
 TEST(LpmSettings, MaterialAndSunsNameTheirFields) {
