@@ -191,6 +191,40 @@ TEST(TailShape, SeparableSourcesKeepTheFlatTail) {
     EXPECT_TRUE(r.converged);
 }
 
+// A two-grid solve with and without smoothing (LpmSettings::cycleSmoothing), each
+// measured against its own fixed point: the full-resolution solve with the same rays (1
+// per voxel in the higher orders) at tolerance 1e-5. `base` holds what all three share.
+namespace {
+
+struct SmoothingRuns {
+    LpmResult plain, smoothed;
+    double plainError = 0, smoothError = 0;  ///< band-0 relative RMS from full resolution
+};
+
+SmoothingRuns smoothingRuns(const Case& cs, const LpmSettings& base) {
+    Scene sc = makeScene(cs, 32);
+    sc.lights.env = &sc.sky;
+    LpmSettings ref = base, plain = base, smoothed = base;
+    ref.multires = 0;
+    ref.raysHigherOrders = 1;
+    ref.tolerance = 1e-5;
+    plain.multires = smoothed.multires = 1;
+    plain.cycleSmoothing = 0;
+    const LpmResult full = solveLpm(sc.medium, sc.lights, ref);
+    SmoothingRuns r{solveLpm(sc.medium, sc.lights, plain), solveLpm(sc.medium, sc.lights, smoothed)};
+    r.plainError = band0RelativeRms(sc.medium, r.plain, full);
+    r.smoothError = band0RelativeRms(sc.medium, r.smoothed, full);
+    return r;
+}
+
+int finePasses(const LpmResult& r) {
+    int n = 0;
+    for (const PassStats& ps : r.passes) n += ps.coarse ? 0 : 1;
+    return n;
+}
+
+}  // namespace
+
 // Post-smoothing (docs/multires.md, "Smoothing"): a thick cloud at albedo 0.99, whose
 // shaped cycles leave a residual that changes sign between surface and interior. With one
 // source-iteration pass of each cycle's residual, the two-grid solve comes closer to its
@@ -198,29 +232,16 @@ TEST(TailShape, SeparableSourcesKeepTheFlatTail) {
 // 1.48% against 3.71% band 0), in at most twice the fine passes (22 against 12: here the
 // plain cycles meet the stop test sooner), and the energy still balances.
 TEST(TailShape, SmoothingBringsAThickHighAlbedoCycleCloserToItsFixedPoint) {
-    Case cs{"thick cloud", VolumeKind::Cloud, 0.0, 0.99, 128.0};
-    Scene sc = makeScene(cs, 32);
-    sc.lights.env = &sc.sky;
-    LpmSettings ref, plain, smoothed;
-    ref.multires = 0;
-    ref.raysHigherOrders = 1;  // the two-grid solve's fine passes sweep 1 ray per voxel
-    ref.tolerance = 1e-5;
-    plain.multires = smoothed.multires = 1;
-    plain.shapedCoarseTail = smoothed.shapedCoarseTail = 1;
-    plain.cycleSmoothing = 0;
-    const LpmResult full = solveLpm(sc.medium, sc.lights, ref);
-    const LpmResult a = solveLpm(sc.medium, sc.lights, plain), b = solveLpm(sc.medium, sc.lights, smoothed);
-    const double plainError = band0RelativeRms(sc.medium, a, full), smoothError = band0RelativeRms(sc.medium, b, full);
-    const auto finePasses = [](const LpmResult& r) {
-        int n = 0;
-        for (const PassStats& ps : r.passes) n += ps.coarse ? 0 : 1;
-        return n;
-    };
+    LpmSettings shaped;
+    shaped.shapedCoarseTail = 1;
+    const SmoothingRuns r = smoothingRuns(Case{"thick cloud", VolumeKind::Cloud, 0.0, 0.99, 128.0}, shaped);
+    const LpmResult &a = r.plain, &b = r.smoothed;
     std::printf("against full resolution: plain %.5f (%d fine passes, residual %.3g), smoothed %.5f (%d, %.3g)\n",
-                plainError, finePasses(a), a.unshot / a.injected, smoothError, finePasses(b), b.unshot / b.injected);
+                r.plainError, finePasses(a), a.unshot / a.injected, r.smoothError, finePasses(b),
+                b.unshot / b.injected);
     EXPECT_TRUE(saidDecision(b, "each residual smoothed by fine passes"));
     EXPECT_FALSE(saidDecision(a, "smoothed"));
-    EXPECT_LT(smoothError, 0.5 * plainError);
+    EXPECT_LT(r.smoothError, 0.5 * r.plainError);
     EXPECT_LE(finePasses(b), 2 * finePasses(a));
     EXPECT_NEAR(b.absorbed + b.escaped + b.unshot, b.injected, 2e-3 * b.injected);
 }
@@ -231,27 +252,17 @@ TEST(TailShape, SmoothingBringsAThickHighAlbedoCycleCloserToItsFixedPoint) {
 // 0.72% against 0.81% band 0, 23 passes against 25, residual 2.4e-5 against 2.1e-4), it
 // says so, and the energy balances.
 TEST(TailShape, SeparableCyclesSmoothTheirResidual) {
-    Case cs{"thick plume", VolumeKind::Plume, 0.6, 0.9, 64.0};
-    Scene sc = makeScene(cs, 32);
-    sc.lights.env = &sc.sky;
-    LpmSettings ref, plain, smoothed;
-    ref.multires = 0;
-    ref.raysHigherOrders = 1;
-    ref.linearSource = 0;
-    ref.tolerance = 1e-5;
-    plain.multires = smoothed.multires = 1;
-    plain.linearSource = smoothed.linearSource = 0;
-    plain.cycleSmoothing = 0;
-    const LpmResult full = solveLpm(sc.medium, sc.lights, ref);
-    const LpmResult a = solveLpm(sc.medium, sc.lights, plain), b = solveLpm(sc.medium, sc.lights, smoothed);
-    const double plainError = band0RelativeRms(sc.medium, a, full), smoothError = band0RelativeRms(sc.medium, b, full);
+    LpmSettings constant;
+    constant.linearSource = 0;
+    const SmoothingRuns r = smoothingRuns(Case{"thick plume", VolumeKind::Plume, 0.6, 0.9, 64.0}, constant);
+    const LpmResult &a = r.plain, &b = r.smoothed;
     std::printf("against full resolution: plain %.5f (%zu passes, residual %.3g), smoothed %.5f (%zu, %.3g)\n",
-                plainError, a.passes.size(), a.unshot / a.injected, smoothError, b.passes.size(),
+                r.plainError, a.passes.size(), a.unshot / a.injected, r.smoothError, b.passes.size(),
                 b.unshot / b.injected);
     EXPECT_TRUE(saidDecision(b, "separable fine sources"));
     EXPECT_TRUE(saidDecision(b, "each residual smoothed by fine passes"));
     EXPECT_FALSE(saidDecision(a, "smoothed"));
-    EXPECT_LT(smoothError, plainError);
+    EXPECT_LT(r.smoothError, r.plainError);
     EXPECT_LE(b.passes.size(), a.passes.size());
     EXPECT_TRUE(b.converged);
     EXPECT_NEAR(b.absorbed + b.escaped + b.unshot, b.injected, 2e-3 * b.injected);
