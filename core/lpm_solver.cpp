@@ -242,10 +242,10 @@ void LpmSolve::addToSourceSum(const std::vector<float>& src, float scale) {
 // goes on over the passes skipped: 3x covered it on the 1M plume at g = 0.6); it must be
 // within the tolerance (for a coarse solve, the bake's share of its input, though the
 // solve itself stops at a tenth: LpmSettings::extrapolationTolerance), and rho at most 0.9
-// (nearer 1 GMRES does better). On one grid (no
-// coarse continuation, no separable sources) the same test, within a tenth of the
-// tolerance (nothing corrects what the series misses there), ends the solve with one last
-// pass of next / (1 - rho) (finishWithGeometricTail; docs/lpm_solver.md).
+// (nearer 1 GMRES does better). On one grid (no coarse continuation, no separable
+// sources) the same test, within a tenth of the tolerance (nothing corrects what the
+// series misses there), ends the solve with one last pass of next / (1 - rho)
+// (finishWithGeometricTail; docs/lpm_solver.md).
 bool LpmSolve::extrapolateTail(double last, double ratio) {
     const size_t n = res_.passes.size();
     const bool oneGrid = !initialSource_ && plan_.coarseFrom == 0 && !sep_;
