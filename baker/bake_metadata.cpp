@@ -67,6 +67,7 @@ std::string canonicalSettings(const BakeOptions& o) {
     num("coarse_tail_extrapolation", s.coarseTailExtrapolation);
     num("shaped_coarse_tail", s.shapedCoarseTail);
     num("shaped_tail_above", s.shapedTailAbove);
+    num("diffusion_tail", s.diffusionTail);
     num("cycle_smoothing", s.cycleSmoothing);
     num("multires_min_voxels", s.multiresMinVoxels);
     num("multires_directions", s.multiresDirections);

@@ -345,9 +345,11 @@ void addSolverOptions(CLI::App& app, Args& a) {
            "--two-grid-tail", a.tail,
            "how the two-grid cycle brings its coarse tail back into each coarse voxel: auto (shaped where a "
            "coarse voxel may be optically thicker than 1), shaped (by the first residual its children hold: "
-           "closer to full resolution voxel by voxel, 1.5-2.2x the time where coarse voxels are thicker than 1), flat")
+           "closer to full resolution voxel by voxel, 1.5-2.2x the time where coarse voxels are thicker than 1), flat, "
+           "diffusion (from a diffusion solve on the fine grid, no coarse grid: thick media at albedo near 1; one "
+           "unshot bin)")
         ->default_val("auto")
-        ->check(CLI::IsMember({"auto", "shaped", "flat"}))
+        ->check(CLI::IsMember({"auto", "shaped", "flat", "diffusion"}))
         ->group(gS);
     app.add_option("--source", a.sourceShape,
                    "source inside a voxel: auto (linear when a voxel is thicker than optical depth 2; at g != 0 only "
@@ -529,6 +531,7 @@ int runBakeCommand(Args& a, int argc, char** argv, const Log& log) {
     b.solver.multires = a.multires == "on" ? 1 : (a.multires == "off" ? 0 : -1);
     b.solver.separableSource = a.separable == "on" ? 1 : (a.separable == "off" ? 0 : -1);
     b.solver.shapedCoarseTail = a.tail == "shaped" ? 1 : (a.tail == "flat" ? 0 : -1);
+    b.solver.diffusionTail = a.tail == "diffusion" ? 1 : 0;
     b.sunTerm = a.sunTerm == "on" ? 1 : (a.sunTerm == "off" ? 0 : -1);
     std::vector<std::string> explicitKnobs;
     for (const std::string& flag : qualityFlags())

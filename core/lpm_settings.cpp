@@ -79,6 +79,7 @@ void LpmSettings::validate() const {
     requireAutoOrRange("shapedCoarseTail", shapedCoarseTail, 0, 1);
     if (!(shapedTailAbove >= 0))
         throw SettingError("LPM", "shapedTailAbove", "must be >= 0, got " + std::to_string(shapedTailAbove));
+    requireRange("diffusionTail", diffusionTail, 0, 1);
     requireRange("cycleSmoothing", cycleSmoothing, 0, 4);
     if (!(extrapolationTolerance >= 0) || !std::isfinite(extrapolationTolerance))
         throw SettingError("LPM", "extrapolationTolerance",

@@ -43,6 +43,10 @@ struct LpmSettings {
                                           ///< the fine sources are not separable), 0 flat, 1 shaped by the first
                                           ///< residual the children hold (core/tail_shape.h)
     double shapedTailAbove = 1.0;         ///< auto threshold: twice the largest fine voxel's optical depth
+    int diffusionTail = 0;                ///< the two-grid cycle's tail from a diffusion solve on the fine grid
+                                          ///< instead of the coarse grid's transport (core/diffusion_tail.h;
+                                          ///< docs/performance.md, session 49): 0 off, 1 on (one unshot bin,
+                                          ///< sources not separable)
     int cycleSmoothing = 1;               ///< source-iteration passes of each two-grid cycle's residual before
                                           ///< the next coarse solve (docs/multires.md, "Smoothing"); 0 = none
     /// Set by the two-grid cycle for its coarse solves with a shaped tail: each pass's source

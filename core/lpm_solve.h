@@ -56,6 +56,7 @@ private:
     };
     void continueOnCoarse(int firstPass);
     void continueOnCoarseSeparable(int firstPass);
+    void continueWithDiffusion(int firstPass);  ///< core/diffusion_cycle.cpp
     std::vector<float> tailShapeOf(const Medium& mc, const std::vector<float>& r) const;
     std::vector<float> coarseOrders(const Medium& mc, LpmSettings& cs, const SolvePlan& coarsePlan,
                                     std::vector<float> uc, const Residual& left, bool shapedTail, int cycle, int& p,

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <string>
 
 #include "core/env_binning.h"
 #include "core/medium.h"
@@ -240,6 +241,22 @@ void planTailShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan& p
                                                                      coarseTau, s.shapedTailAbove)});
 }
 
+/// Whether the two-grid cycle takes its tail from a diffusion solve on the fine grid
+/// (core/diffusion_tail.h) instead of the coarse grid's transport: on request, with one
+/// unshot bin and full fine sources.
+void planDiffusionTail(const LpmSettings& s, SolvePlan& plan) {
+    if (plan.coarseFrom == 0 || s.diffusionTail == 0) return;
+    std::string whyNot;
+    if (plan.separableSource) whyNot = "separable fine sources";
+    else if (plan.binsPerFace != 0) whyNot = "unshot bins (the diffusion tail is isotropic)";
+    plan.diffusionTail = whyNot.empty();
+    if (plan.diffusionTail)
+        plan.decisions.push_back({"two-grid tail from a fine-grid diffusion solve",
+                                  "requested: (sigma_t (1 - albedo) - div D grad) J = sigma_t r, the tail albedo J "
+                                  "times a factor that follows the residual"});
+    else plan.decisions.push_back({"two-grid tail from the coarse grid (diffusion requested)", whyNot});
+}
+
 /// The resolution schedule of the scattering orders: which run on the 2x coarser grid
 /// (docs/multires.md), with how many directions and rays.
 void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
@@ -260,6 +277,7 @@ void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& 
     }
     planSeparableSource(scene, s, plan);
     planTailShape(scene, s, plan);
+    planDiffusionTail(s, plan);
     const int n = s.directionsPerFace, half = n / 2, b = plan.binsPerFace;
     plan.coarseDirectionsPerFace =
         s.multiresDirections > 0 ? s.multiresDirections : (half >= 2 && (b == 0 || half % b == 0) ? half : n);

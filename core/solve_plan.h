@@ -64,12 +64,13 @@ struct SolvePlan {
     int hotPixelPasses = 0;        ///< environment hot spots swept as suns in pass 0
     int coarseFrom = 0;            ///< first order on the 2x coarser grid; 0 = full resolution throughout
     int coarseDirectionsPerFace = 0;
-    bool separableSource = false;             ///< fine sources held separably (core/separable_source.h)
-    bool shapedTail = false;                  ///< the two-grid tail shaped inside coarse voxels (core/tail_shape.h)
-    int raysSingle = 2;                       ///< rays per voxel of pass 0 (single scattering)
-    int raysHigher = 2;                       ///< rays per voxel of the later passes
-    bool krylov = true;                       ///< GMRES may take over when plain iteration would be slow
-    int krylovAfter = 25;                     ///< switch when plain iteration predicts more passes than this
+    bool separableSource = false;  ///< fine sources held separably (core/separable_source.h)
+    bool shapedTail = false;       ///< the two-grid tail shaped inside coarse voxels (core/tail_shape.h)
+    bool diffusionTail = false;    ///< the cycle's tail from a fine-grid diffusion solve (core/diffusion_tail.h)
+    int raysSingle = 2;            ///< rays per voxel of pass 0 (single scattering)
+    int raysHigher = 2;            ///< rays per voxel of the later passes
+    bool krylov = true;            ///< GMRES may take over when plain iteration would be slow
+    int krylovAfter = 25;          ///< switch when plain iteration predicts more passes than this
     double predictedSegmentsPerFinePass = 0;  ///< ray-segment updates of one full-resolution pass
     double predictedSecondsPerFinePass = 0;   ///< at the planner's throughput estimate
     double predictedBytes = 0;                ///< the solve's main buffers

@@ -170,6 +170,10 @@ void LpmSolve::continueOnCoarse(int firstPass) {
         continueOnCoarseSeparable(firstPass);
         return;
     }
+    if (plan_.diffusionTail) {
+        continueWithDiffusion(firstPass);
+        return;
+    }
     const auto tp = Clock::now();
     const Medium mc = coarsen(m_);
     LpmSettings cs = coarseSettings(s_, plan_, cache_, N_);

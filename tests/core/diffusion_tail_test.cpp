@@ -11,7 +11,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "core/rng.h"
-#include "test_scenes.h"
+#include "lpm_vs_mc.h"
 
 using namespace lpm;
 using namespace lpm::test;
@@ -123,4 +123,31 @@ TEST(DiffusionOperator, NamesBadInput) {
     }
     EXPECT_THROW(DiffusionOperator(m, 0.0), Error);
     EXPECT_THROW(DiffusionOperator(m, NAN), Error);
+}
+
+// The cycle with the diffusion tail (core/diffusion_cycle.cpp) on a thick cloud at albedo
+// 0.99, against the coarse grid's shaped cycle and the fixed point both iterate toward
+// (full resolution with the same rays at tolerance 1e-5): it converges in fewer fine
+// passes, comes closer to the fixed point, says so, and the energy balances (measured:
+// 0.073% from the fixed point in 7 passes, against 0.48% in 233).
+TEST(DiffusionCycle, ThickHighAlbedoCloudConvergesCloserToItsFixedPoint) {
+    Scene sc = makeScene(Case{"thick cloud", VolumeKind::Cloud, 0.0, 0.99, 64.0}, 40);
+    sc.lights.env = &sc.sky;
+    LpmSettings ref, coarse, diffusion;
+    ref.multires = 0;
+    ref.raysHigherOrders = 1;
+    ref.tolerance = 1e-5;
+    coarse.multires = diffusion.multires = 1;
+    diffusion.diffusionTail = 1;
+    const LpmResult full = solveLpm(sc.medium, sc.lights, ref);
+    const LpmResult a = solveLpm(sc.medium, sc.lights, coarse), b = solveLpm(sc.medium, sc.lights, diffusion);
+    const double errA = band0RelativeRms(sc.medium, a, full), errB = band0RelativeRms(sc.medium, b, full);
+    std::printf("against full resolution: coarse tail %.5f (%zu passes, converged %d), diffusion tail %.5f (%zu, %d)\n",
+                errA, a.passes.size(), a.converged, errB, b.passes.size(), b.converged);
+    EXPECT_TRUE(saidDecision(b, "two-grid tail from a fine-grid diffusion solve: requested"));
+    EXPECT_TRUE(saidDecision(b, "two-grid: diffusion tail"));
+    EXPECT_TRUE(b.converged);
+    EXPECT_LT(b.passes.size(), a.passes.size());
+    EXPECT_LT(errB, errA);
+    EXPECT_NEAR(b.absorbed + b.escaped + b.unshot, b.injected, 2e-3 * b.injected);
 }

@@ -46,6 +46,7 @@ TEST(LpmSettings, EachRuleNamesItsField) {
     EXPECT_EQ(rejectedField([](LpmSettings& s) { s.multiresAfter = 0; }), "multiresAfter");
     EXPECT_EQ(rejectedField([](LpmSettings& s) { s.subdivide = kMaxSubdivide + 1; }), "subdivide");
     EXPECT_EQ(rejectedField([](LpmSettings& s) { s.cycleSmoothing = 5; }), "cycleSmoothing");
+    EXPECT_EQ(rejectedField([](LpmSettings& s) { s.diffusionTail = 2; }), "diffusionTail");
     EXPECT_EQ(rejectedField([](LpmSettings& s) { s.extrapolationTolerance = -1; }), "extrapolationTolerance");
     EXPECT_EQ(rejectedField([](LpmSettings& s) { s.extrapolationTolerance = INFINITY; }), "extrapolationTolerance");
 }

@@ -269,6 +269,25 @@ TEST(SolvePlan, TwoGridTailShapedWhereCoarseVoxelsAreThick) {
     EXPECT_FALSE(planSolve(smallScene(), shaped, 2).shapedTail);  // full resolution: no tail
 }
 
+// The diffusion tail runs on request where the two-grid cycle has one unshot bin and full
+// fine sources, and says why not elsewhere (its accuracy: diffusion_tail_test.cpp).
+TEST(SolvePlan, DiffusionTailOnRequestWithOneBin) {
+    SceneSummary sc = smallScene();
+    sc.dims[0] = sc.dims[1] = sc.dims[2] = 64;
+    sc.storedVoxels = 64 * 64 * 64;
+    LpmSettings on;
+    on.diffusionTail = 1;
+    EXPECT_FALSE(planSolve(sc, LpmSettings{}, 2).diffusionTail);
+    const SolvePlan isotropic = planSolve(sc, on, 2);
+    EXPECT_TRUE(isotropic.diffusionTail);
+    EXPECT_TRUE(says(isotropic, "two-grid tail from a fine-grid diffusion solve: requested"));
+    sc.g = 0.6;  // separable fine sources
+    const SolvePlan separable = planSolve(sc, on, 2);
+    EXPECT_FALSE(separable.diffusionTail);
+    EXPECT_TRUE(says(separable, "two-grid tail from the coarse grid (diffusion requested): separable fine sources"));
+    EXPECT_FALSE(planSolve(smallScene(), on, 2).diffusionTail);  // full resolution: no cycle
+}
+
 TEST(SolvePlan, PredictedCostScalesWithVoxelsRaysAndThreads) {
     SceneSummary sc = smallScene();
     LpmSettings fullRes;  // at 2x the voxels the block would reach the two-grid threshold
