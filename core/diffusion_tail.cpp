@@ -11,6 +11,8 @@ namespace lpm {
 
 namespace {
 
+constexpr int kStep[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+
 /// Sums over fixed chunks of voxels, added in chunk order: the same for any thread count.
 constexpr std::size_t kChunk = std::size_t(1) << 13;
 
@@ -39,76 +41,131 @@ struct ChunkSums {
 
 }  // namespace
 
-DiffusionOperator::DiffusionOperator(const Medium& m, double diffusionCap)
-    : sigmaT_(m.sigmaT), nbr_(m.voxelCount()), coef_(m.voxelCount()), leak_(m.voxelCount(), 0.0f) {
+DiffusionOperator::DiffusionOperator(const Medium& m, double diffusionCap) : m_(m), face_(m.voxelCount()) {
     if (!(diffusionCap > 0))
         throw Error("LPM", "diffusion tail: the cap on D must be > 0, got " + std::to_string(diffusionCap));
+    if (m.sparse()) linkTiles();
     const double h = m.voxelSize.x;
     const auto D = [&](std::size_t v) { return std::min(diffusionCap * h, 1.0 / (3.0 * double(m.sigmaT[v]))); };
-    static constexpr int kStep[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    const auto hasMedium = [&](std::size_t v) {
+        int x, y, z;
+        m.coord(v, x, y, z);
+        return m.sigmaT[v] > 0 && x >= 0 && y >= 0 && z >= 0 && x < m.nx && y < m.ny && z < m.nz;
+    };
     parallelForChunks(m.voxelCount(), 4096, [&](std::size_t vb, std::size_t ve) {
         for (std::size_t v = vb; v < ve; ++v) {
-            nbr_[v].fill(-1);
-            coef_[v].fill(0.0f);
-            if (!(m.sigmaT[v] > 0)) continue;
-            int x, y, z;
-            m.coord(v, x, y, z);
+            face_[v] = {0, 0, 0, 0};
+            if (!hasMedium(v)) continue;
+            std::size_t nbr[6];
+            neighbours(v, nbr);
             double leak = 0;
             for (int k = 0; k < 6; ++k) {
-                const int a = x + kStep[k][0], b = y + kStep[k][1], c = z + kStep[k][2];
-                const bool inside = a >= 0 && b >= 0 && c >= 0 && a < m.nx && b < m.ny && c < m.nz;
-                const std::size_t j = inside ? m.index(a, b, c) : Medium::npos;
-                if (j != Medium::npos && m.sigmaT[j] > 0) {
+                const std::size_t j = nbr[k];
+                if (j != Medium::npos && hasMedium(j)) {
                     const double Di = D(v), Dj = D(j);
-                    nbr_[v][std::size_t(k)] = std::int32_t(j);
-                    coef_[v][std::size_t(k)] = float(2.0 * Di * Dj / ((Di + Dj) * h * h));
-                    leak += coef_[v][std::size_t(k)];
+                    const float coef = float(2.0 * Di * Dj / ((Di + Dj) * h * h));
+                    if (k % 2 == 0) face_[v][std::size_t(k / 2)] = coef;
+                    leak += coef;
                 } else {
                     leak += 2.0 * D(v) / (h * (h + 4.0 * D(v)));  // Marshak: light leaves
                 }
             }
-            leak_[v] = float(leak);
+            face_[v][3] = float(leak);
         }
     });
+}
+
+void DiffusionOperator::linkTiles() {
+    const Medium& m = m_;
+    tileNeighbour_.resize(m.storedTiles);
+    const int tnx = m.tilesX(), tny = m.tilesY(), tnz = m.tilesZ();
+    for (std::size_t slot = 0; slot < m.storedTiles; ++slot) {
+        const int t = m.slotTile[slot];
+        const int tx = t % tnx, ty = (t / tnx) % tny, tz = t / (tnx * tny);
+        for (int k = 0; k < 6; ++k) {
+            const int a = tx + kStep[k][0], b = ty + kStep[k][1], c = tz + kStep[k][2];
+            const bool inside = a >= 0 && b >= 0 && c >= 0 && a < tnx && b < tny && c < tnz;
+            tileNeighbour_[slot][std::size_t(k)] = inside ? m.tileSlot[std::size_t(a + tnx * (b + tny * c))] : -1;
+        }
+    }
+}
+
+void DiffusionOperator::neighbours(std::size_t v, std::size_t (&nbr)[6]) const {
+    if (!m_.sparse()) {
+        int x, y, z;
+        m_.coord(v, x, y, z);
+        for (int k = 0; k < 6; ++k) {
+            const int a = x + kStep[k][0], b = y + kStep[k][1], c = z + kStep[k][2];
+            const bool inside = a >= 0 && b >= 0 && c >= 0 && a < m_.nx && b < m_.ny && c < m_.nz;
+            nbr[k] = inside ? m_.index(a, b, c) : Medium::npos;
+        }
+        return;
+    }
+    constexpr std::size_t T = Medium::kTile;
+    const std::size_t slot = v / Medium::kTileVoxels, local = v % Medium::kTileVoxels;
+    for (int k = 0; k < 6; ++k) {
+        const std::size_t stride = k < 2 ? 1 : (k < 4 ? T : T * T);
+        const std::size_t l = (local / stride) % T;
+        const bool up = k % 2 == 0;
+        if (up ? l + 1 < T : l > 0) {
+            nbr[k] = up ? v + stride : v - stride;
+            continue;
+        }
+        const std::int32_t t = tileNeighbour_[slot][std::size_t(k)];
+        nbr[k] =
+            t < 0 ? Medium::npos
+                  : std::size_t(t) * Medium::kTileVoxels + (up ? local - (T - 1) * stride : local + (T - 1) * stride);
+    }
 }
 
 void DiffusionOperator::apply(const std::vector<float>& x, const RGB& albedo, std::vector<float>& y) const {
     y.resize(x.size());
     parallelForChunks(voxels(), 4096, [&](std::size_t vb, std::size_t ve) {
-        for (std::size_t v = vb; v < ve; ++v)
+        for (std::size_t v = vb; v < ve; ++v) {
+            if (!medium(v)) {
+                for (std::size_t c = 0; c < 3; ++c) y[v * 3 + c] = x[v * 3 + c];
+                continue;
+            }
+            std::size_t nbr[6];
+            float coef[6];
+            neighbours(v, nbr);
+            for (int k = 0; k < 6; ++k) {  // a -face's coefficient is held by the voxel below
+                const std::size_t j = nbr[k];
+                coef[k] = j == Medium::npos ? 0.0f : face_[k % 2 == 0 ? v : j][std::size_t(k / 2)];
+            }
             for (int c = 0; c < 3; ++c) {
                 const std::size_t i = v * 3 + std::size_t(c);
-                if (!(sigmaT_[v] > 0)) {
-                    y[i] = x[i];
-                    continue;
-                }
-                float s = (leak_[v] + sigmaT_[v] * (1.0f - albedo[c])) * x[i];
+                float s = diagonal(v, albedo[c]) * x[i];
                 for (int k = 0; k < 6; ++k)
-                    if (nbr_[v][std::size_t(k)] >= 0)
-                        s -= coef_[v][std::size_t(k)] * x[std::size_t(nbr_[v][std::size_t(k)]) * 3 + std::size_t(c)];
+                    if (coef[k] > 0) s -= coef[k] * x[nbr[k] * 3 + std::size_t(c)];
                 y[i] = s;
             }
+        }
     });
 }
 
 DiffusionSolve DiffusionOperator::solve(const std::vector<float>& b, const RGB& albedo, double tolerance,
                                         int maxIterations) const {
-    const std::size_t N = voxels(), n = N * 3;
-    if (b.size() != n)
+    if (b.size() != voxels() * 3)
         throw Error("LPM", "diffusion tail: source of " + std::to_string(b.size()) + " values for " +
-                               std::to_string(N) + " voxels x RGB");
-    std::vector<float> diag(n), x(n, 0.0f), res(n), z(n), p(n), Ap(n);
+                               std::to_string(voxels()) + " voxels x RGB");
+    return solve(b.data(), 3, albedo, tolerance, maxIterations);
+}
+
+// Jacobi-preconditioned CG (z = res / diagonal, computed where it is used rather than held).
+DiffusionSolve DiffusionOperator::solve(const float* b, std::size_t stride, const RGB& albedo, double tolerance,
+                                        int maxIterations) const {
+    const std::size_t N = voxels(), n = N * 3;
+    std::vector<float> x(n, 0.0f), res(n), p(n), Ap(n);
+    const auto z = [&](std::size_t v, std::size_t c) { return res[v * 3 + c] / diagonal(v, albedo[int(c)]); };
     ChunkSums sums(N);
     sums.forEach(N, [&](std::size_t v, std::array<double, 6>& s) {
-        for (int c = 0; c < 3; ++c) {
-            const std::size_t i = v * 3 + std::size_t(c);
-            const bool medium = sigmaT_[v] > 0;
-            diag[i] = medium ? leak_[v] + sigmaT_[v] * (1.0f - albedo[c]) : 1.0f;
-            res[i] = medium ? sigmaT_[v] * b[i] : 0.0f;
-            z[i] = res[i] / diag[i];
-            p[i] = z[i];
-            s[std::size_t(c)] += double(res[i]) * res[i];
-            s[std::size_t(3 + c)] += double(res[i]) * z[i];
+        for (std::size_t c = 0; c < 3; ++c) {
+            const std::size_t i = v * 3 + c;
+            res[i] = medium(v) ? m_.sigmaT[v] * b[v * stride + c] : 0.0f;
+            p[i] = z(v, c);
+            s[c] += double(res[i]) * res[i];
+            s[3 + c] += double(res[i]) * p[i];
         }
     });
     const std::array<double, 3> bb = sums.total(0);
@@ -132,9 +189,8 @@ DiffusionSolve DiffusionOperator::solve(const std::vector<float>& b, const RGB& 
                 const std::size_t i = v * 3 + c;
                 x[i] += a[c] * p[i];
                 res[i] -= a[c] * Ap[i];
-                z[i] = res[i] / diag[i];
                 s[c] += double(res[i]) * res[i];
-                s[3 + c] += double(res[i]) * z[i];
+                s[3 + c] += double(res[i]) * z(v, c);
             }
         });
         rr = sums.total(0);
@@ -143,7 +199,8 @@ DiffusionSolve DiffusionOperator::solve(const std::vector<float>& b, const RGB& 
         for (std::size_t c = 0; c < 3; ++c) beta[c] = rz[c] > 0 ? float(rzNext[c] / rz[c]) : 0.0f;
         rz = rzNext;
         parallelForChunks(N, 1 << 14, [&](std::size_t vb, std::size_t ve) {
-            for (std::size_t i = vb * 3; i < ve * 3; ++i) p[i] = z[i] + beta[i % 3] * p[i];
+            for (std::size_t v = vb; v < ve; ++v)
+                for (std::size_t c = 0; c < 3; ++c) p[v * 3 + c] = z(v, c) + beta[c] * p[v * 3 + c];
         });
     }
     for (std::size_t c = 0; c < 3; ++c) out.relativeResidual[c] = bb[c] > 0 ? std::sqrt(rr[c] / bb[c]) : 0.0;

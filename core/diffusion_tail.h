@@ -29,24 +29,42 @@ struct DiffusionSolve {
 class DiffusionOperator {
 public:
     /// `diffusionCap`: the largest D in voxel edges (thin voxels: D = 1 / (3 sigma_t) grows
-    /// without bound, and with it the matrix's condition number).
+    /// without bound, and with it the matrix's condition number). Keeps a reference to `m`.
     explicit DiffusionOperator(const Medium& m, double diffusionCap = 1.0);
 
-    /// Solves A_c J_c = sigma_t b_c for each channel c (b [stored voxel][rgb], the means of
-    /// the residual), A_c = sigma_t (1 - albedo_c) + leakage, until |residual| <= tolerance
-    /// |sigma_t b| in every channel or maxIterations. The same result for any thread count.
+    /// Solves A_c J_c = sigma_t b_c for each channel c (b_c of voxel v at b[v * stride + c],
+    /// the means of the residual), A_c = sigma_t (1 - albedo_c) + leakage, until |residual|
+    /// <= tolerance |sigma_t b| in every channel or maxIterations. The same result for any
+    /// thread count. Holds four [voxel][rgb] vectors (J among them) while it runs.
+    DiffusionSolve solve(const float* b, std::size_t stride, const RGB& albedo, double tolerance,
+                         int maxIterations) const;
+    /// The same with b [stored voxel][rgb].
     DiffusionSolve solve(const std::vector<float>& b, const RGB& albedo, double tolerance, int maxIterations) const;
 
-    /// y = A_c x for one channel's albedo, on [stored voxel][rgb] vectors (tests).
+    /// y = A_c x for one channel's albedo, on [stored voxel][rgb] vectors.
     void apply(const std::vector<float>& x, const RGB& albedo, std::vector<float>& y) const;
 
-    std::size_t voxels() const { return sigmaT_.size(); }
+    std::size_t voxels() const { return face_.size(); }
 
 private:
-    std::vector<float> sigmaT_;                     ///< extinction per stored voxel
-    std::vector<std::array<std::int32_t, 6>> nbr_;  ///< neighbours with extinction, -1 for none
-    std::vector<std::array<float, 6>> coef_;        ///< D_face / h^2 towards each of them
-    std::vector<float> leak_;                       ///< the diagonal's leakage: faces and vacuum
+    /// Stored voxel `v`'s neighbours on sides +x, -x, +y, -y, +z, -z, Medium::npos where not
+    /// stored (outside the block or in an unallocated tile).
+    void neighbours(std::size_t v, std::size_t (&nbr)[6]) const;
+    void linkTiles();  ///< tileNeighbour_
+    bool medium(std::size_t v) const { return face_[v][3] > 0; }
+    /// A_c's diagonal: leakage and absorption (1 for a voxel without extinction).
+    float diagonal(std::size_t v, float albedo) const {
+        return medium(v) ? face_[v][3] + m_.sigmaT[v] * (1.0f - albedo) : 1.0f;
+    }
+
+    const Medium& m_;
+    /// Per stored voxel: D_face / h^2 towards its +x, +y, +z neighbour (0 where either has no
+    /// extinction: the face then leaks through the Marshak term), and the diagonal's leakage
+    /// (every face's coefficient or Marshak term; 0 marks a voxel without extinction).
+    /// 16 bytes a voxel: the operator is applied from these and the medium's sigma_t.
+    std::vector<std::array<float, 4>> face_;
+    /// Sparse media: per tile slot, the slot of the tile on each side, -1 where none.
+    std::vector<std::array<std::int32_t, 6>> tileNeighbour_;
 };
 
 }  // namespace lpm

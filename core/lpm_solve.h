@@ -62,6 +62,9 @@ private:
                                     std::vector<float> uc, const Residual& left, bool shapedTail, int cycle, int& p,
                                     TwoGridCount& count, const MassRows* rows = nullptr);
     bool cycleConverged(const Residual& r, bool shapedTail) const;
+    /// One physical fine pass p++ of the source r (deposits to S): r <- K r, next_ then holds
+    /// the old r.
+    void sweepInPlace(std::vector<float>& r, int& p);
     /// s_.cycleSmoothing physical passes r <- K r of a cycle's residual.
     Residual smoothResidual(std::vector<float>& r, int& p);
     Residual smoothSeparableResidual(SeparableSource& r, int& p);

@@ -200,12 +200,7 @@ void LpmSolve::continueOnCoarse(int firstPass) {
         const std::vector<float> tailCoarse =
             coarseOrders(mc, cs, coarsePlan, restrictSource(m_, mc, r, nb_, M_), left, shaped, cycles, p, count);
         addCoarse(m_, mc, tailCoarse, nb_, M_, 1.0f, r, shaped ? &shape : nullptr);  // r now holds E
-        const auto tf = Clock::now();
-        assignZeroed(next_, N_ * perVoxel_);
-        Tally t;
-        runner_->run(sourceJobs(r), r_, t, true, next_);
-        recordPass(p++, t, tf);
-        std::swap(r, next_);  // r = K E; next's storage (E) is freed before the next coarse solve
+        sweepInPlace(r, p);  // r = K E; next_ (E) is freed before the next coarse solve
         addCoarse(m_, mc, tailCoarse, nb_, M_, -1.0f, r, shaped ? &shape : nullptr);  // r' = K E - tail
         left = {sourcePower(r), sourcePower(r, true)};
         res_.passes.back().scattered = std::fabs(left.power);
@@ -219,6 +214,15 @@ void LpmSolve::continueOnCoarse(int firstPass) {
     reportTwoGrid(mc, cs, cycles, count, left, shaped, s_.cycleSmoothing > 0, tp);
 }
 
+void LpmSolve::sweepInPlace(std::vector<float>& r, int& p) {
+    const auto tf = Clock::now();
+    assignZeroed(next_, N_ * perVoxel_);
+    Tally t;
+    runner_->run(sourceJobs(r), r_, t, true, next_);
+    recordPass(p++, t, tf);
+    std::swap(r, next_);
+}
+
 // Post-smoothing of a cycle (docs/multires.md, "Smoothing"): plain source iteration
 // on the fine grid, r <- K r, each pass physical (its deposits are S's share of r). The
 // residual a coarse correction leaves changes sign between the lit surface and the
@@ -228,12 +232,7 @@ void LpmSolve::continueOnCoarse(int firstPass) {
 LpmSolve::Residual LpmSolve::smoothResidual(std::vector<float>& r, int& p) {
     Residual left{sourcePower(r), sourcePower(r, true)};
     for (int k = 0; k < s_.cycleSmoothing && p < s_.maxOrders; ++k) {
-        const auto tf = Clock::now();
-        assignZeroed(next_, N_ * perVoxel_);
-        Tally t;
-        runner_->run(sourceJobs(r), r_, t, true, next_);
-        recordPass(p++, t, tf);
-        std::swap(r, next_);
+        sweepInPlace(r, p);
         next_ = std::vector<float>();
         left = {sourcePower(r), sourcePower(r, true)};
         res_.passes.back().scattered = std::fabs(left.power);
