@@ -66,6 +66,7 @@ std::string flagOf(const std::string& field) {
                                                                 {"multiresAfter", "--multires-after"},
                                                                 {"separableSource", "--separable-sources"},
                                                                 {"shapedCoarseTail", "--two-grid-tail"},
+                                                                {"diffusionTail", "--two-grid-tail"},
                                                                 {"linearSource", "--source"},
                                                                 {"deltaM", "--delta-m"},
                                                                 {"envHotShare", "--env-hot-share"},

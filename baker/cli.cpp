@@ -531,7 +531,7 @@ int runBakeCommand(Args& a, int argc, char** argv, const Log& log) {
     b.solver.multires = a.multires == "on" ? 1 : (a.multires == "off" ? 0 : -1);
     b.solver.separableSource = a.separable == "on" ? 1 : (a.separable == "off" ? 0 : -1);
     b.solver.shapedCoarseTail = a.tail == "shaped" ? 1 : (a.tail == "flat" ? 0 : -1);
-    b.solver.diffusionTail = a.tail == "diffusion" ? 1 : 0;
+    b.solver.diffusionTail = a.tail == "diffusion" ? 1 : (a.tail == "auto" ? -1 : 0);
     b.sunTerm = a.sunTerm == "on" ? 1 : (a.sunTerm == "off" ? 0 : -1);
     std::vector<std::string> explicitKnobs;
     for (const std::string& flag : qualityFlags())

@@ -79,7 +79,11 @@ void LpmSettings::validate() const {
     requireAutoOrRange("shapedCoarseTail", shapedCoarseTail, 0, 1);
     if (!(shapedTailAbove >= 0))
         throw SettingError("LPM", "shapedTailAbove", "must be >= 0, got " + std::to_string(shapedTailAbove));
-    requireRange("diffusionTail", diffusionTail, 0, 1);
+    requireAutoOrRange("diffusionTail", diffusionTail, 0, 1);
+    if (!(diffusionTailAlbedo >= 0) || !(diffusionTailTau >= 0))
+        throw SettingError("LPM", "diffusionTailAlbedo/diffusionTailTau",
+                           "must be >= 0, got " + std::to_string(diffusionTailAlbedo) + " and " +
+                               std::to_string(diffusionTailTau));
     requireRange("cycleSmoothing", cycleSmoothing, 0, 4);
     if (!(extrapolationTolerance >= 0) || !std::isfinite(extrapolationTolerance))
         throw SettingError("LPM", "extrapolationTolerance",

@@ -43,10 +43,13 @@ struct LpmSettings {
                                           ///< the fine sources are not separable), 0 flat, 1 shaped by the first
                                           ///< residual the children hold (core/tail_shape.h)
     double shapedTailAbove = 1.0;         ///< auto threshold: twice the largest fine voxel's optical depth
-    int diffusionTail = 0;                ///< the two-grid cycle's tail from a diffusion solve on the fine grid
+    int diffusionTail = -1;               ///< the two-grid cycle's tail from a diffusion solve on the fine grid
                                           ///< instead of the coarse grid's transport (core/diffusion_tail.h;
-                                          ///< docs/performance.md, session 49): 0 off, 1 on (one unshot bin,
-                                          ///< sources not separable)
+                                          ///< docs/multires.md "Diffusion tail"): -1 auto (albedo up to at least
+                                          ///< diffusionTailAlbedo and fine voxels up to optical depth at least
+                                          ///< diffusionTailTau), 0 off, 1 on; one unshot bin, sources not separable
+    double diffusionTailAlbedo = 0.97;    ///< auto threshold: the largest channel's albedo
+    double diffusionTailTau = 2.0;        ///< auto threshold: the largest fine voxel's optical depth
     int cycleSmoothing = 1;               ///< source-iteration passes of each two-grid cycle's residual before
                                           ///< the next coarse solve (docs/multires.md, "Smoothing"); 0 = none
     /// Set by the two-grid cycle for its coarse solves with a shaped tail: each pass's source

@@ -242,19 +242,33 @@ void planTailShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan& p
 }
 
 /// Whether the two-grid cycle takes its tail from a diffusion solve on the fine grid
-/// (core/diffusion_tail.h) instead of the coarse grid's transport: on request, with one
-/// unshot bin and full fine sources.
-void planDiffusionTail(const LpmSettings& s, SolvePlan& plan) {
+/// (core/diffusion_tail.h) instead of the coarse grid's transport: on request, or (auto)
+/// where the scattering is nearly conservative in voxels thick enough for the coarse tail
+/// to converge slowly (docs/multires.md, "Diffusion tail": at albedo 0.99 the coarse cycle
+/// stopped at its cap on the 1M smoke and cumulus, the diffusion tail converged in half the
+/// time; at 0.9, or in voxels of optical depth 0.6, the coarse cycle was faster). It needs
+/// one unshot bin and full fine sources, and says why not elsewhere.
+void planDiffusionTail(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
     if (plan.coarseFrom == 0 || s.diffusionTail == 0) return;
+    const double albedo = std::max({scene.albedo[0], scene.albedo[1], scene.albedo[2]});
+    const bool wanted =
+        s.diffusionTail == 1 || (albedo >= s.diffusionTailAlbedo && scene.maxVoxelTau >= s.diffusionTailTau);
+    if (!wanted) return;
     std::string whyNot;
     if (plan.separableSource) whyNot = "separable fine sources";
     else if (plan.binsPerFace != 0) whyNot = "unshot bins (the diffusion tail is isotropic)";
     plan.diffusionTail = whyNot.empty();
+    const std::string why =
+        s.diffusionTail == 1 ? std::string("requested")
+                             : format("albedo up to %.3g >= %g and voxels up to optical depth %.3g >= %g", albedo,
+                                      s.diffusionTailAlbedo, scene.maxVoxelTau, s.diffusionTailTau);
     if (plan.diffusionTail)
         plan.decisions.push_back({"two-grid tail from a fine-grid diffusion solve",
-                                  "requested: (sigma_t (1 - albedo) - div D grad) J = sigma_t r, the tail albedo J "
-                                  "times a factor that follows the residual"});
-    else plan.decisions.push_back({"two-grid tail from the coarse grid (diffusion requested)", whyNot});
+                                  why + ": (sigma_t (1 - albedo) - div D grad) J = sigma_t r, the tail albedo J "
+                                        "times a factor that follows the residual"});
+    else plan.decisions.push_back({"two-grid tail from the coarse grid (diffusion " +
+                                       std::string(s.diffusionTail == 1 ? "requested" : "would apply: " + why) + ")",
+                                   whyNot});
 }
 
 /// The resolution schedule of the scattering orders: which run on the 2x coarser grid
@@ -277,7 +291,7 @@ void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& 
     }
     planSeparableSource(scene, s, plan);
     planTailShape(scene, s, plan);
-    planDiffusionTail(s, plan);
+    planDiffusionTail(scene, s, plan);
     const int n = s.directionsPerFace, half = n / 2, b = plan.binsPerFace;
     plan.coarseDirectionsPerFace =
         s.multiresDirections > 0 ? s.multiresDirections : (half >= 2 && (b == 0 || half % b == 0) ? half : n);

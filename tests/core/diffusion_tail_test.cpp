@@ -138,6 +138,7 @@ TEST(DiffusionCycle, ThickHighAlbedoCloudConvergesCloserToItsFixedPoint) {
     ref.raysHigherOrders = 1;
     ref.tolerance = 1e-5;
     coarse.multires = diffusion.multires = 1;
+    coarse.diffusionTail = 0;
     diffusion.diffusionTail = 1;
     const LpmResult full = solveLpm(sc.medium, sc.lights, ref);
     const LpmResult a = solveLpm(sc.medium, sc.lights, coarse), b = solveLpm(sc.medium, sc.lights, diffusion);

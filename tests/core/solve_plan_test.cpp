@@ -288,6 +288,33 @@ TEST(SolvePlan, DiffusionTailOnRequestWithOneBin) {
     EXPECT_FALSE(planSolve(smallScene(), on, 2).diffusionTail);  // full resolution: no cycle
 }
 
+// Auto: the diffusion tail where the albedo (largest channel) and the voxels' optical depth
+// both reach their thresholds, the coarse tail otherwise; forced off, never.
+TEST(SolvePlan, DiffusionTailAutoForThickNearlyConservativeMedia) {
+    SceneSummary sc = smallScene();
+    sc.dims[0] = sc.dims[1] = sc.dims[2] = 64;
+    sc.storedVoxels = 64 * 64 * 64;
+    sc.maxVoxelTau = 2.5;
+    sc.albedo = RGB(0.5f, 0.6f, 0.99f);
+    const SolvePlan thick = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_TRUE(thick.diffusionTail);
+    EXPECT_TRUE(says(thick, "two-grid tail from a fine-grid diffusion solve: albedo up to 0.99 >= 0.97 and voxels "
+                            "up to optical depth 2.5 >= 2"));
+    LpmSettings off;
+    off.diffusionTail = 0;
+    EXPECT_FALSE(planSolve(sc, off, 2).diffusionTail);
+    sc.maxVoxelTau = 0.6;  // the coarse cycle converges quickly in thinner voxels
+    EXPECT_FALSE(planSolve(sc, LpmSettings{}, 2).diffusionTail);
+    sc.maxVoxelTau = 2.5;
+    sc.albedo = RGB(0.9f);
+    EXPECT_FALSE(planSolve(sc, LpmSettings{}, 2).diffusionTail);
+    sc.albedo = RGB(0.99f);
+    sc.g = 0.6;  // separable fine sources: said, not done
+    const SolvePlan separable = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_FALSE(separable.diffusionTail);
+    EXPECT_TRUE(says(separable, "two-grid tail from the coarse grid (diffusion would apply: albedo up to 0.99"));
+}
+
 TEST(SolvePlan, PredictedCostScalesWithVoxelsRaysAndThreads) {
     SceneSummary sc = smallScene();
     LpmSettings fullRes;  // at 2x the voxels the block would reach the two-grid threshold
