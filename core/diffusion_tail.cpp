@@ -1,6 +1,8 @@
 // The diffusion tail's operator and its conjugate-gradient solve: core/diffusion_tail.h.
 #include "core/diffusion_tail.h"
 
+#include "core/diffusion_multigrid.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -90,7 +92,7 @@ void DiffusionOperator::linkTiles() {
     }
 }
 
-void DiffusionOperator::neighbours(std::size_t v, std::size_t (&nbr)[6]) const {
+inline void DiffusionOperator::neighbours(std::size_t v, std::size_t (&nbr)[6]) const {
     if (!m_.sparse()) {
         int x, y, z;
         m_.coord(v, x, y, z);
@@ -101,20 +103,18 @@ void DiffusionOperator::neighbours(std::size_t v, std::size_t (&nbr)[6]) const {
         }
         return;
     }
-    constexpr std::size_t T = Medium::kTile;
-    const std::size_t slot = v / Medium::kTileVoxels, local = v % Medium::kTileVoxels;
-    for (int k = 0; k < 6; ++k) {
-        const std::size_t stride = k < 2 ? 1 : (k < 4 ? T : T * T);
-        const std::size_t l = (local / stride) % T;
-        const bool up = k % 2 == 0;
-        if (up ? l + 1 < T : l > 0) {
-            nbr[k] = up ? v + stride : v - stride;
-            continue;
-        }
-        const std::int32_t t = tileNeighbour_[slot][std::size_t(k)];
-        nbr[k] =
-            t < 0 ? Medium::npos
-                  : std::size_t(t) * Medium::kTileVoxels + (up ? local - (T - 1) * stride : local + (T - 1) * stride);
+    // In a tile: local index lx + 8 ly + 64 lz; across its face, the neighbouring tile's
+    // voxel on the opposite face.
+    constexpr std::size_t T = Medium::kTile, TV = Medium::kTileVoxels;
+    const std::size_t slot = v / TV, local = v % TV;
+    const std::size_t l[3] = {local % T, (local / T) % T, local / (T * T)};
+    const auto& across = tileNeighbour_[slot];
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+        const std::size_t stride = axis == 0 ? 1 : (axis == 1 ? T : T * T), wrap = (T - 1) * stride;
+        const std::int32_t up = across[2 * axis], down = across[2 * axis + 1];
+        nbr[2 * axis] = l[axis] + 1 < T ? v + stride : (up < 0 ? Medium::npos : std::size_t(up) * TV + local - wrap);
+        nbr[2 * axis + 1] =
+            l[axis] > 0 ? v - stride : (down < 0 ? Medium::npos : std::size_t(down) * TV + local + wrap);
     }
 }
 
@@ -122,7 +122,7 @@ void DiffusionOperator::apply(const std::vector<float>& x, const RGB& albedo, st
     y.resize(x.size());
     parallelForChunks(voxels(), 4096, [&](std::size_t vb, std::size_t ve) {
         for (std::size_t v = vb; v < ve; ++v) {
-            if (!medium(v)) {
+            if (!hasMedium(v)) {
                 for (std::size_t c = 0; c < 3; ++c) y[v * 3 + c] = x[v * 3 + c];
                 continue;
             }
@@ -132,44 +132,61 @@ void DiffusionOperator::apply(const std::vector<float>& x, const RGB& albedo, st
             for (int k = 0; k < 6; ++k) {  // a -face's coefficient is held by the voxel below
                 const std::size_t j = nbr[k];
                 coef[k] = j == Medium::npos ? 0.0f : face_[k % 2 == 0 ? v : j][std::size_t(k / 2)];
+                if (!(coef[k] > 0)) nbr[k] = v;  // no face: a zero term (x is finite)
             }
-            for (int c = 0; c < 3; ++c) {
-                const std::size_t i = v * 3 + std::size_t(c);
-                float s = diagonal(v, albedo[c]) * x[i];
-                for (int k = 0; k < 6; ++k)
-                    if (coef[k] > 0) s -= coef[k] * x[nbr[k] * 3 + std::size_t(c)];
-                y[i] = s;
+            const float* xv = &x[v * 3];
+            float s[3];
+            for (int c = 0; c < 3; ++c) s[c] = diagonal(v, albedo[c]) * xv[c];
+            for (int k = 0; k < 6; ++k) {
+                const float* xn = &x[nbr[k] * 3];
+                for (int c = 0; c < 3; ++c) s[c] -= coef[k] * xn[c];
             }
+            for (int c = 0; c < 3; ++c) y[v * 3 + std::size_t(c)] = s[c];
         }
     });
 }
 
 DiffusionSolve DiffusionOperator::solve(const std::vector<float>& b, const RGB& albedo, double tolerance,
-                                        int maxIterations) const {
+                                        int maxIterations, const DiffusionMultigrid* multigrid) const {
     if (b.size() != voxels() * 3)
         throw Error("LPM", "diffusion tail: source of " + std::to_string(b.size()) + " values for " +
                                std::to_string(voxels()) + " voxels x RGB");
-    return solve(b.data(), 3, albedo, tolerance, maxIterations);
+    return solve(b.data(), 3, albedo, tolerance, maxIterations, multigrid);
 }
 
-// Jacobi-preconditioned CG (z = res / diagonal, computed where it is used rather than held).
+// Preconditioned CG: z = M res from the multigrid when given, else res / diagonal (Jacobi,
+// computed where it is used rather than held).
 DiffusionSolve DiffusionOperator::solve(const float* b, std::size_t stride, const RGB& albedo, double tolerance,
-                                        int maxIterations) const {
+                                        int maxIterations, const DiffusionMultigrid* multigrid) const {
     const std::size_t N = voxels(), n = N * 3;
-    std::vector<float> x(n, 0.0f), res(n), p(n), Ap(n);
-    const auto z = [&](std::size_t v, std::size_t c) { return res[v * 3 + c] / diagonal(v, albedo[int(c)]); };
+    std::vector<float> x(n, 0.0f), res(n), p(n), Ap(n), zHeld(multigrid ? n : 0);
+    const auto z = [&](std::size_t v, std::size_t c) {
+        return multigrid ? zHeld[v * 3 + c] : res[v * 3 + c] / diagonal(v, albedo[int(c)]);
+    };
     ChunkSums sums(N);
+    // <res, z> per channel into rz (after z = M res when the multigrid preconditions).
+    const auto resDotZ = [&](std::array<double, 3>& rz) {
+        multigrid->precondition(res, albedo, zHeld, Ap);
+        sums.forEach(N, [&](std::size_t v, std::array<double, 6>& s) {
+            for (std::size_t c = 0; c < 3; ++c) s[c] += double(res[v * 3 + c]) * zHeld[v * 3 + c];
+        });
+        rz = sums.total(0);
+    };
     sums.forEach(N, [&](std::size_t v, std::array<double, 6>& s) {
         for (std::size_t c = 0; c < 3; ++c) {
             const std::size_t i = v * 3 + c;
-            res[i] = medium(v) ? m_.sigmaT[v] * b[v * stride + c] : 0.0f;
-            p[i] = z(v, c);
+            res[i] = hasMedium(v) ? m_.sigmaT[v] * b[v * stride + c] : 0.0f;
             s[c] += double(res[i]) * res[i];
-            s[3 + c] += double(res[i]) * p[i];
+            if (!multigrid) s[3 + c] += double(res[i]) * z(v, c);
         }
     });
     const std::array<double, 3> bb = sums.total(0);
     std::array<double, 3> rz = sums.total(3), rr = bb;
+    if (multigrid) resDotZ(rz);
+    parallelForChunks(N, 1 << 14, [&](std::size_t vb, std::size_t ve) {
+        for (std::size_t v = vb; v < ve; ++v)
+            for (std::size_t c = 0; c < 3; ++c) p[v * 3 + c] = z(v, c);
+    });
     const auto converged = [&] {
         for (int c = 0; c < 3; ++c)
             if (rr[std::size_t(c)] > tolerance * tolerance * bb[std::size_t(c)]) return false;
@@ -190,11 +207,12 @@ DiffusionSolve DiffusionOperator::solve(const float* b, std::size_t stride, cons
                 x[i] += a[c] * p[i];
                 res[i] -= a[c] * Ap[i];
                 s[c] += double(res[i]) * res[i];
-                s[3 + c] += double(res[i]) * z(v, c);
+                if (!multigrid) s[3 + c] += double(res[i]) * z(v, c);
             }
         });
         rr = sums.total(0);
-        const std::array<double, 3> rzNext = sums.total(3);
+        std::array<double, 3> rzNext = sums.total(3);
+        if (multigrid) resDotZ(rzNext);
         float beta[3];
         for (std::size_t c = 0; c < 3; ++c) beta[c] = rz[c] > 0 ? float(rzNext[c] / rz[c]) : 0.0f;
         rz = rzNext;

@@ -20,6 +20,8 @@
 
 namespace lpm {
 
+class DiffusionMultigrid;  // core/diffusion_multigrid.h
+
 struct DiffusionSolve {
     std::vector<float> J;                    ///< [stored voxel][rgb]
     int iterations = 0;                      ///< CG iterations (all three channels together)
@@ -36,26 +38,32 @@ public:
     /// the means of the residual), A_c = sigma_t (1 - albedo_c) + leakage, until |residual|
     /// <= tolerance |sigma_t b| in every channel or maxIterations. The same result for any
     /// thread count. Holds four [voxel][rgb] vectors (J among them) while it runs.
-    DiffusionSolve solve(const float* b, std::size_t stride, const RGB& albedo, double tolerance,
-                         int maxIterations) const;
+    /// `multigrid` (built on this operator) preconditions; Jacobi without it.
+    DiffusionSolve solve(const float* b, std::size_t stride, const RGB& albedo, double tolerance, int maxIterations,
+                         const DiffusionMultigrid* multigrid = nullptr) const;
     /// The same with b [stored voxel][rgb].
-    DiffusionSolve solve(const std::vector<float>& b, const RGB& albedo, double tolerance, int maxIterations) const;
+    DiffusionSolve solve(const std::vector<float>& b, const RGB& albedo, double tolerance, int maxIterations,
+                         const DiffusionMultigrid* multigrid = nullptr) const;
 
     /// y = A_c x for one channel's albedo, on [stored voxel][rgb] vectors.
     void apply(const std::vector<float>& x, const RGB& albedo, std::vector<float>& y) const;
 
     std::size_t voxels() const { return face_.size(); }
+    const Medium& medium() const { return m_; }
+    /// Whether stored voxel v has extinction (its row is the identity otherwise).
+    bool hasMedium(std::size_t v) const { return face_[v][3] > 0; }
+    /// Its coefficients towards +x, +y, +z and its leakage (see face_).
+    const std::array<float, 4>& faces(std::size_t v) const { return face_[v]; }
+    /// A_c's diagonal: leakage and absorption (1 for a voxel without extinction).
+    float diagonal(std::size_t v, float albedo) const {
+        return hasMedium(v) ? face_[v][3] + m_.sigmaT[v] * (1.0f - albedo) : 1.0f;
+    }
 
 private:
     /// Stored voxel `v`'s neighbours on sides +x, -x, +y, -y, +z, -z, Medium::npos where not
     /// stored (outside the block or in an unallocated tile).
-    void neighbours(std::size_t v, std::size_t (&nbr)[6]) const;
+    inline __attribute__((always_inline)) void neighbours(std::size_t v, std::size_t (&nbr)[6]) const;
     void linkTiles();  ///< tileNeighbour_
-    bool medium(std::size_t v) const { return face_[v][3] > 0; }
-    /// A_c's diagonal: leakage and absorption (1 for a voxel without extinction).
-    float diagonal(std::size_t v, float albedo) const {
-        return medium(v) ? face_[v][3] + m_.sigmaT[v] * (1.0f - albedo) : 1.0f;
-    }
 
     const Medium& m_;
     /// Per stored voxel: D_face / h^2 towards its +x, +y, +z neighbour (0 where either has no

@@ -81,9 +81,9 @@ void LpmSettings::validate() const {
         throw SettingError("LPM", "shapedTailAbove", "must be >= 0, got " + std::to_string(shapedTailAbove));
     requireAutoOrRange("diffusionTail", diffusionTail, 0, 1);
     if (!(diffusionTailAlbedo >= 0) || !(diffusionTailTau >= 0))
-        throw SettingError("LPM", "diffusionTailAlbedo/diffusionTailTau",
-                           "must be >= 0, got " + std::to_string(diffusionTailAlbedo) + " and " +
-                               std::to_string(diffusionTailTau));
+        throw SettingError(
+            "LPM", "diffusionTailAlbedo/diffusionTailTau",
+            "must be >= 0, got " + std::to_string(diffusionTailAlbedo) + " and " + std::to_string(diffusionTailTau));
     requireRange("cycleSmoothing", cycleSmoothing, 0, 4);
     if (!(extrapolationTolerance >= 0) || !std::isfinite(extrapolationTolerance))
         throw SettingError("LPM", "extrapolationTolerance",

@@ -258,17 +258,18 @@ void planDiffusionTail(const SceneSummary& scene, const LpmSettings& s, SolvePla
     if (plan.separableSource) whyNot = "separable fine sources";
     else if (plan.binsPerFace != 0) whyNot = "unshot bins (the diffusion tail is isotropic)";
     plan.diffusionTail = whyNot.empty();
-    const std::string why =
-        s.diffusionTail == 1 ? std::string("requested")
-                             : format("albedo up to %.3g >= %g and voxels up to optical depth %.3g >= %g", albedo,
-                                      s.diffusionTailAlbedo, scene.maxVoxelTau, s.diffusionTailTau);
+    const std::string why = s.diffusionTail == 1
+                                ? std::string("requested")
+                                : format("albedo up to %.3g >= %g and voxels up to optical depth %.3g >= %g", albedo,
+                                         s.diffusionTailAlbedo, scene.maxVoxelTau, s.diffusionTailTau);
     if (plan.diffusionTail)
         plan.decisions.push_back({"two-grid tail from a fine-grid diffusion solve",
                                   why + ": (sigma_t (1 - albedo) - div D grad) J = sigma_t r, the tail albedo J "
                                         "times a factor that follows the residual"});
-    else plan.decisions.push_back({"two-grid tail from the coarse grid (diffusion " +
-                                       std::string(s.diffusionTail == 1 ? "requested" : "would apply: " + why) + ")",
-                                   whyNot});
+    else
+        plan.decisions.push_back({"two-grid tail from the coarse grid (diffusion " +
+                                      std::string(s.diffusionTail == 1 ? "requested" : "would apply: " + why) + ")",
+                                  whyNot});
 }
 
 /// The resolution schedule of the scattering orders: which run on the 2x coarser grid

@@ -119,6 +119,7 @@ TEST(Multires, CoarseGridSwitchesToGmresEarly) {
     LpmSettings early, plain;
     early.multires = plain.multires = 1;
     early.shapedCoarseTail = plain.shapedCoarseTail = 0;
+    early.diffusionTail = plain.diffusionTail = 0;  // the coarse grid's own solve
     plain.krylov = false;
     plain.coarseTailExtrapolation = false;  // the expensive path: every coarse pass
     const LpmResult re = solveLpm(sc.medium, sc.lights, early);

@@ -298,8 +298,9 @@ TEST(SolvePlan, DiffusionTailAutoForThickNearlyConservativeMedia) {
     sc.albedo = RGB(0.5f, 0.6f, 0.99f);
     const SolvePlan thick = planSolve(sc, LpmSettings{}, 2);
     EXPECT_TRUE(thick.diffusionTail);
-    EXPECT_TRUE(says(thick, "two-grid tail from a fine-grid diffusion solve: albedo up to 0.99 >= 0.97 and voxels "
-                            "up to optical depth 2.5 >= 2"));
+    EXPECT_TRUE(says(thick,
+                     "two-grid tail from a fine-grid diffusion solve: albedo up to 0.99 >= 0.97 and voxels "
+                     "up to optical depth 2.5 >= 2"));
     LpmSettings off;
     off.diffusionTail = 0;
     EXPECT_FALSE(planSolve(sc, off, 2).diffusionTail);
