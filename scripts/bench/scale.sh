@@ -35,6 +35,9 @@ scenes=(
   "plume-1M|plume --res 124|--albedo 0.9 --density-scale 0.25"
   "plume-1M-g0.6|plume --res 124|--albedo 0.9 --density-scale 0.25 --g 0.6"
   "cumulus-1M-g0.6-a0.99|cloud --res 160|--albedo 0.99 --density-scale 0.6 --g 0.6"
+  # The same cloud at g = 0 and 6.7x the density (voxels up to optical depth 4): the
+  # planner takes the diffusion tail (docs/multires.md, "Diffusion tail").
+  "cumulus-1M-a0.99-thick|same cumulus-1M-g0.6-a0.99|--albedo 0.99 --density-scale 4"
   "puff-1|puffs --res 512 --count 1|--albedo 0.9"
   "puffs-2-in-512^3|puffs --res 512 --count 2|--albedo 0.9"
 )
@@ -45,6 +48,8 @@ if [ "$mantaflow" = 1 ]; then
   scenes+=("smoke-1M-mantaflow|mantaflow --res 224 --end 60|--albedo 0.9 --density-scale 25 --up-axis z")
   # The same smoke thick enough for the linear source (voxels up to optical depth 2.66).
   scenes+=("smoke-1M-mantaflow-thick|same smoke-1M-mantaflow|--albedo 0.9 --density-scale 150 --up-axis z")
+  # And at albedo 0.99: the diffusion tail.
+  scenes+=("smoke-1M-mantaflow-thick-a0.99|same smoke-1M-mantaflow|--albedo 0.99 --density-scale 150 --up-axis z")
   # And at g = 0.6: 24 unshot bins, where the auto plan keeps the constant source over the
   # memory line (docs/performance.md, "Session 44").
   scenes+=("smoke-1M-mantaflow-thick-g0.6|same smoke-1M-mantaflow|--albedo 0.9 --density-scale 150 --up-axis z --g 0.6")
