@@ -28,7 +28,8 @@ void jacobi(const Op& op, std::size_t cells, const RGB& albedo, const std::vecto
     if (fromZero) {
         parallelForChunks(cells, 4096, [&](std::size_t ib, std::size_t ie) {
             for (std::size_t i = ib; i < ie; ++i)
-                for (int c = 0; c < 3; ++c) x[i * 3 + std::size_t(c)] = kJacobiWeight * b[i * 3 + std::size_t(c)] / op.diagonal(i, albedo[c]);
+                for (int c = 0; c < 3; ++c)
+                    x[i * 3 + std::size_t(c)] = kJacobiWeight * b[i * 3 + std::size_t(c)] / op.diagonal(i, albedo[c]);
         });
         --steps;
     }

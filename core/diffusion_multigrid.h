@@ -5,8 +5,8 @@
 // iterations to 1e-2 on the 1M smoke. A V-cycle removes the smooth error Jacobi leaves.
 //
 // Levels: the fine grid (the operator's stored voxels), then dense grids 2x coarser each,
-// down to a few thousand cells (each 56 B a cell: 7 B a fine block voxel for the first). Each coarse cell aggregates the 2x2x2 cells below it that
-// have medium (piecewise-constant prolongation P, restriction P^T: the sum), and its
+// down to a few thousand cells (each 56 B a cell: 7 B a fine block voxel for the first). Each coarse cell aggregates
+// the 2x2x2 cells below it that have medium (piecewise-constant prolongation P, restriction P^T: the sum), and its
 // operator is the Galerkin product P^T A P, again a 7-point stencil: writing
 // A_c = L + (1 - albedo_c) Sigma (L leakage, Sigma the extinction on the diagonal), the
 // coarse Sigma sums its children's, a coarse face coefficient sums the fine faces between
@@ -45,9 +45,9 @@ public:
     /// One dense coarse level (public for the cycle's helpers in the .cpp).
     struct Level {
         int nx = 0, ny = 0, nz = 0;
-        std::vector<std::array<float, 4>> face;         ///< +x, +y, +z coefficients, leakage (as the fine operator's)
-        std::vector<float> sigma;                       ///< Sigma's diagonal: the children's extinction summed
-        mutable std::vector<float> rhs, sol, tmp;       ///< right side, iterate, scratch ([cell][rgb])
+        std::vector<std::array<float, 4>> face;    ///< +x, +y, +z coefficients, leakage (as the fine operator's)
+        std::vector<float> sigma;                  ///< Sigma's diagonal: the children's extinction summed
+        mutable std::vector<float> rhs, sol, tmp;  ///< right side, iterate, scratch ([cell][rgb])
         std::size_t cells() const { return sigma.size(); }
         std::size_t index(int x, int y, int z) const {
             return std::size_t(x) + std::size_t(nx) * (std::size_t(y) + std::size_t(ny) * std::size_t(z));

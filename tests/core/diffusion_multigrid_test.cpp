@@ -62,7 +62,8 @@ TEST(DiffusionOperator, SparseTilesGiveTheDenseMatrix) {
             for (int x = 0; x < sparse.nx; ++x) {
                 const std::size_t i = sparse.index(x, y, z), j = dense.index(x, y, z);
                 if (i == Medium::npos || !(sparse.sigmaT[i] > 0)) continue;
-                for (std::size_t c = 0; c < 3; ++c) ASSERT_EQ(ys[i * 3 + c], yd[j * 3 + c]) << x << " " << y << " " << z;
+                for (std::size_t c = 0; c < 3; ++c)
+                    ASSERT_EQ(ys[i * 3 + c], yd[j * 3 + c]) << x << " " << y << " " << z;
                 ++compared;
             }
     EXPECT_GT(compared, 3000);
@@ -139,8 +140,8 @@ TEST(DiffusionMultigrid, CutsTheIterationsToTheSameSolution) {
     std::vector<float> b = randomField(3 * a.voxels(), 5);
     for (float& v : b) v = std::fabs(v);
     const DiffusionSolve jac = a.solve(b, albedo, 1e-4, 5000), pre = a.solve(b, albedo, 1e-4, 5000, &mg);
-    std::printf("CG iterations to 1e-4: Jacobi %d, multigrid %d (%d coarse levels)\n", jac.iterations,
-                pre.iterations, mg.coarseLevels());
+    std::printf("CG iterations to 1e-4: Jacobi %d, multigrid %d (%d coarse levels)\n", jac.iterations, pre.iterations,
+                mg.coarseLevels());
     for (double r : pre.relativeResidual) EXPECT_LE(r, 1e-4);
     EXPECT_LT(3 * pre.iterations, jac.iterations);
     double num = 0, den = 0;
