@@ -8,6 +8,8 @@
 // [0.5, 1] (the correction overshoots in media with thin wisps, where the residual then
 // alternates in sign, and undershoots in clouds, where over-relaxing it stalled the
 // absolute residual). Each residual is smoothed by one plain pass, as the coarse cycle's.
+// The diffusion problem is solved by CG with a multigrid preconditioner
+// (core/diffusion_multigrid.h).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -60,7 +62,8 @@ void LpmSolve::continueWithDiffusion(int firstPass) {
     Residual left{res_.passes.back().scattered, sourcePower(r, true)};
     for (; cycles < kMaxDiffusionCycles && p < s_.maxOrders; ++cycles) {
         // The pass's buffers go back to the heap before the CG: its vectors take their place
-        // (the 1M cumulus at albedo 0.99 peaked at 488 MiB without, 425 with; docs/performance.md).
+        // (with the Jacobi CG the 1M cumulus at albedo 0.99 peaked at 488 MiB without, 425
+        // with; docs/performance.md, session 50).
         runner_->releaseBuffers();
         const double inPower = sourcePower(r);
         const DiffusionSolve d = solveDiffusion();
