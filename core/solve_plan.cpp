@@ -262,10 +262,16 @@ void planDiffusionTail(const SceneSummary& scene, const LpmSettings& s, SolvePla
                                 ? std::string("requested")
                                 : format("albedo up to %.3g >= %g and voxels up to optical depth %.3g >= %g", albedo,
                                          s.diffusionTailAlbedo, scene.maxVoxelTau, s.diffusionTailTau);
+    // Held during each solve: the operator (16 B a stored voxel), the CG's five vectors and
+    // J (12 B each), the multigrid's first level (56 B a cell of the half-resolution block).
+    const double bytes = double(scene.storedVoxels) * (16 + 6 * 12) + 56.0 * std::ceil(scene.dims[0] / 2.0) *
+                                                                          std::ceil(scene.dims[1] / 2.0) *
+                                                                          std::ceil(scene.dims[2] / 2.0);
     if (plan.diffusionTail)
         plan.decisions.push_back({"two-grid tail from a fine-grid diffusion solve",
                                   why + ": (sigma_t (1 - albedo) - div D grad) J = sigma_t r, the tail albedo J "
-                                        "times a factor that follows the residual"});
+                                        "times a factor that follows the residual",
+                                  -1, bytes});
     else
         plan.decisions.push_back({"two-grid tail from the coarse grid (diffusion " +
                                       std::string(s.diffusionTail == 1 ? "requested" : "would apply: " + why) + ")",

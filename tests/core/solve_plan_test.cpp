@@ -298,6 +298,14 @@ TEST(SolvePlan, DiffusionTailAutoForThickNearlyConservativeMedia) {
     sc.albedo = RGB(0.5f, 0.6f, 0.99f);
     const SolvePlan thick = planSolve(sc, LpmSettings{}, 2);
     EXPECT_TRUE(thick.diffusionTail);
+    int priced = 0;  // its memory: 88 B a stored voxel, 56 B a cell of the half-resolution block
+    for (const PlanDecision& d : thick.decisions) {
+        if (d.what == "two-grid tail from a fine-grid diffusion solve") {
+            EXPECT_DOUBLE_EQ(d.predictedBytes, 88.0 * 64 * 64 * 64 + 56.0 * 32 * 32 * 32);
+            ++priced;
+        }
+    }
+    EXPECT_EQ(priced, 1);
     EXPECT_TRUE(says(thick,
                      "two-grid tail from a fine-grid diffusion solve: albedo up to 0.99 >= 0.97 and voxels "
                      "up to optical depth 2.5 >= 2"));
