@@ -215,9 +215,10 @@ void planSeparableSource(const SceneSummary& scene, const LpmSettings& s, SolveP
 /// How the two-grid cycle brings its coarse tail back (core/tail_shape.h): flat, each
 /// child its parent's value, or shaped by the first residual the children hold, where a
 /// coarse voxel may be thick enough for its children's light to differ (a coarse voxel is
-/// at most twice as thick as the thickest fine one). Separable sources keep the flat tail.
+/// at most twice as thick as the thickest fine one). Separable sources keep the flat tail;
+/// the diffusion tail (planDiffusionTail, decided first) has no coarse tail to shape.
 void planTailShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
-    if (plan.coarseFrom == 0) return;
+    if (plan.coarseFrom == 0 || plan.diffusionTail) return;
     const double coarseTau = 2.0 * scene.maxVoxelTau;
     if (plan.separableSource) {
         if (s.shapedCoarseTail == 1)
@@ -297,8 +298,8 @@ void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& 
                                                                 std::to_string(s.multiresMinVoxels)});
     }
     planSeparableSource(scene, s, plan);
-    planTailShape(scene, s, plan);
     planDiffusionTail(scene, s, plan);
+    planTailShape(scene, s, plan);
     const int n = s.directionsPerFace, half = n / 2, b = plan.binsPerFace;
     plan.coarseDirectionsPerFace =
         s.multiresDirections > 0 ? s.multiresDirections : (half >= 2 && (b == 0 || half % b == 0) ? half : n);

@@ -309,10 +309,15 @@ TEST(SolvePlan, DiffusionTailAutoForThickNearlyConservativeMedia) {
     EXPECT_TRUE(says(thick,
                      "two-grid tail from a fine-grid diffusion solve: albedo up to 0.99 >= 0.97 and voxels "
                      "up to optical depth 2.5 >= 2"));
+    // No coarse tail to shape: the plan says one two-grid tail, not two.
+    EXPECT_FALSE(thick.shapedTail);
+    EXPECT_FALSE(says(thick, "two-grid tail shaped"));
     LpmSettings off;
     off.diffusionTail = 0;
-    EXPECT_FALSE(planSolve(sc, off, 2).diffusionTail);
-    sc.maxVoxelTau = 0.6;  // the coarse cycle converges quickly in thinner voxels
+    const SolvePlan coarse = planSolve(sc, off, 2);
+    EXPECT_FALSE(coarse.diffusionTail);
+    EXPECT_TRUE(coarse.shapedTail);  // coarse voxels up to optical depth 5
+    sc.maxVoxelTau = 0.6;            // the coarse cycle converges quickly in thinner voxels
     EXPECT_FALSE(planSolve(sc, LpmSettings{}, 2).diffusionTail);
     sc.maxVoxelTau = 2.5;
     sc.albedo = RGB(0.9f);
