@@ -13,6 +13,7 @@
 #include "baker/options.h"
 #include "baker/peak_memory.h"
 #include "baker/stats_json.h"
+#include "baker/stop_warning.h"
 #include "baker/text_format.h"
 #include "core/lpm_cache.h"
 #include "core/parallel.h"
@@ -293,15 +294,7 @@ LpmResult solveStage(const BakeOptions& o, VolumeInput& vol, const Lights& light
     sum.residual = res.residual;
     sum.converged = res.converged;
     sum.segments = res.segments;
-    // Which cap stopped it decides what helps: more orders, or (the two-grid solve's cycles
-    // run out, docs/performance.md "Session 44") full resolution.
-    const std::string hint = res.stoppedAtCycleCap
-                                 ? " (the two-grid solve ran its cycles out, so more orders would not help; "
-                                   "--multires off iterates every order at full resolution: slower, more memory)"
-                                 : " (raise --max-orders)";
-    if (!vol.empty && !res.converged)
-        log.warn("the solver stopped after " + std::to_string(sum.passes) + " passes with residual " +
-                 fmt(res.residual) + " above --tolerance " + fmt(o.solver.tolerance) + hint);
+    if (!vol.empty && !res.converged) log.warn(stopWarning(res, o.solver.tolerance));
     return res;
 }
 

@@ -91,6 +91,7 @@ void LpmSolve::continueWithDiffusion(int firstPass) {
         }
     }
     res_.converged = cycleConverged(left, true);
+    recordAbsoluteResidual(left, true);
     res_.stoppedAtCycleCap = !res_.converged && cycles >= kMaxDiffusionCycles && int(res_.passes.size()) < s_.maxOrders;
     char buf[300];
     std::snprintf(buf, sizeof buf,

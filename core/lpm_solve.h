@@ -62,6 +62,8 @@ private:
                                     std::vector<float> uc, const Residual& left, bool shapedTail, int cycle, int& p,
                                     TwoGridCount& count, const MassRows* rows = nullptr);
     bool cycleConverged(const Residual& r, bool shapedTail) const;
+    /// LpmResult::absoluteResidual and its line, where the cycle tests the absolute power.
+    void recordAbsoluteResidual(const Residual& r, bool shapedTail);
     /// One physical fine pass p++ of the source r (deposits to S): r <- K r, next_ then holds
     /// the old r.
     void sweepInPlace(std::vector<float>& r, int& p);

@@ -50,6 +50,12 @@ struct LpmResult {
     double escaped = 0;   ///< summed over passes
     double unshot = 0;    ///< scattered power of the last pass, not propagated further
     double residual = 0;  ///< unshot / input
+    /// Two-grid cycles that also test their residual's absolute power (the shaped and the
+    /// diffusion tails, core/two_grid.cpp kAbsoluteGuard): that power / input at the stop,
+    /// and the line it had to meet (a multiple of the tolerance); both 0 otherwise. A bake
+    /// can stop at its cycle cap with `residual` within the tolerance and this above it.
+    double absoluteResidual = 0;
+    double absoluteLine = 0;
     bool converged = false;
     /// Not converged because the two-grid solve ran its cycles out (core/two_grid.cpp),
     /// not because of LpmSettings::maxOrders: more orders would not help.

@@ -103,6 +103,12 @@ bool LpmSolve::cycleConverged(const Residual& r, bool shapedTail) const {
     return std::fabs(r.power) <= line && (!shapedTail || r.absolute <= kAbsoluteGuard * line);
 }
 
+void LpmSolve::recordAbsoluteResidual(const Residual& r, bool shapedTail) {
+    if (!shapedTail || !(res_.input > 0)) return;
+    res_.absoluteResidual = r.absolute / res_.input;
+    res_.absoluteLine = kAbsoluteGuard * s_.tolerance;
+}
+
 // Iterates the orders of the restricted source `uc` (taken over) on the coarse grid
 // (passes numbered from p on); returns the sources it propagated beyond uc (the tail).
 // With `rows` (core/mass_rows.h) both are held by those rows; so is the coarse solve's
@@ -137,6 +143,7 @@ std::vector<float> LpmSolve::coarseOrders(const Medium& mc, LpmSettings& cs, con
 void LpmSolve::reportTwoGrid(const Medium& mc, const LpmSettings& cs, int cycles, const TwoGridCount& count,
                              const Residual& r, bool shapedTail, bool smoothed, Clock::time_point start) {
     res_.converged = count.converged && cycleConverged(r, shapedTail);
+    recordAbsoluteResidual(r, shapedTail);
     res_.stoppedAtCycleCap =
         !res_.converged && cycles >= maxCycles(shapedTail) && int(res_.passes.size()) < s_.maxOrders;
     char buf[400];

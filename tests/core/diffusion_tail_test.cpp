@@ -130,6 +130,12 @@ TEST(DiffusionCycle, ThickHighAlbedoCloudConvergesCloserToItsFixedPoint) {
     EXPECT_TRUE(saidDecision(b, "two-grid tail from a fine-grid diffusion solve: albedo up to 0.99 >= 0.97"));
     EXPECT_TRUE(saidDecision(b, "two-grid: diffusion tail"));
     EXPECT_TRUE(b.converged);
+    // Both cycles test the absolute residual too, and record it against its line.
+    for (const LpmResult* r : {&a, &b}) {
+        EXPECT_DOUBLE_EQ(r->absoluteLine, 10 * coarse.tolerance);
+        EXPECT_GT(r->absoluteResidual, 0.0);
+    }
+    EXPECT_LE(b.absoluteResidual, b.absoluteLine);
     EXPECT_LT(b.passes.size(), a.passes.size());
     EXPECT_LT(errB, errA);
     EXPECT_NEAR(b.absorbed + b.escaped + b.unshot, b.injected, 2e-3 * b.injected);
