@@ -14,10 +14,9 @@ std::string stopWarning(const LpmResult& res, double tolerance) {
                                  : " (raise --max-orders)";
     // The signed residual may meet the tolerance while the absolute one does not.
     const bool signedMet = res.residual <= tolerance && res.absoluteResidual > res.absoluteLine;
-    const std::string measure =
-        signedMet ? " within --tolerance " + fmt(tolerance) + ", its absolute value " + fmt(res.absoluteResidual) +
-                        " above " + fmt(res.absoluteLine)
-                  : " above --tolerance " + fmt(tolerance);
+    const std::string measure = signedMet ? " within --tolerance " + fmt(tolerance) + ", its absolute value " +
+                                                fmt(res.absoluteResidual) + " above " + fmt(res.absoluteLine)
+                                          : " above --tolerance " + fmt(tolerance);
     return "the solver stopped after " + std::to_string(res.passes.size()) + " passes with residual " +
            fmt(res.residual) + measure + hint;
 }
