@@ -43,12 +43,18 @@ struct ChunkSums {
 
 }  // namespace
 
-DiffusionOperator::DiffusionOperator(const Medium& m, double diffusionCap) : m_(m), face_(m.voxelCount()) {
+DiffusionOperator::DiffusionOperator(const Medium& m, double diffusionCap, double diffusionFloor)
+    : m_(m), face_(m.voxelCount()) {
     if (!(diffusionCap > 0))
         throw Error("LPM", "diffusion tail: the cap on D must be > 0, got " + std::to_string(diffusionCap));
+    if (!(diffusionFloor >= 0 && diffusionFloor <= diffusionCap))
+        throw Error("LPM", "diffusion tail: the floor on D must be in [0, " + std::to_string(diffusionCap) + "], got " +
+                               std::to_string(diffusionFloor));
     if (m.sparse()) linkTiles();
     const double h = m.voxelSize.x;
-    const auto D = [&](std::size_t v) { return std::min(diffusionCap * h, 1.0 / (3.0 * double(m.sigmaT[v]))); };
+    const auto D = [&](std::size_t v) {
+        return std::clamp(1.0 / (3.0 * double(m.sigmaT[v])), diffusionFloor * h, diffusionCap * h);
+    };
     const auto hasMedium = [&](std::size_t v) {
         int x, y, z;
         m.coord(v, x, y, z);

@@ -31,8 +31,11 @@ struct DiffusionSolve {
 class DiffusionOperator {
 public:
     /// `diffusionCap`: the largest D in voxel edges (thin voxels: D = 1 / (3 sigma_t) grows
-    /// without bound, and with it the matrix's condition number). Keeps a reference to `m`.
-    explicit DiffusionOperator(const Medium& m, double diffusionCap = 1.0);
+    /// without bound, and with it the matrix's condition number). `diffusionFloor`: the
+    /// smallest, in [0, diffusionCap] (thick voxels: the discrete transport carries light
+    /// from voxel to voxel faster than 1 / (3 sigma_t) says; docs/multires.md, "Diffusion
+    /// tail"). Keeps a reference to `m`.
+    explicit DiffusionOperator(const Medium& m, double diffusionCap = 1.0, double diffusionFloor = 0.0);
 
     /// Solves A_c J_c = sigma_t b_c for each channel c (b_c of voxel v at b[v * stride + c],
     /// the means of the residual), A_c = sigma_t (1 - albedo_c) + leakage, until |residual|
