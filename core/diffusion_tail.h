@@ -2,13 +2,13 @@
 // session 49: diffusion synthetic acceleration on the fine grid). With U the source a pass
 // sweeps (emission sigma_s U) and J its mean radiance, one pass is K U = rho T U; diffusion
 // stands in for T, so the sources a residual r gives rise to beyond itself are rho J with
-//     (sigma_t (1 - rho) - div D grad) J = sigma_t r,    D = min(1 / (3 sigma_t), cap h)
+//     (sigma_t (1 - rho) - div D grad) J = sigma_t r,    D = clamp(1 / (3 sigma_t), floor h, cap h)
 // on the stored voxels with extinction: cell-centred finite volumes, the harmonic mean of D
 // across a face between two such voxels, and a Marshak vacuum condition at a face to a
 // voxel without extinction (or outside the block), which adds 2 D / (h (h + 4 D)) to the
-// diagonal. The matrix is symmetric positive definite; it is solved by Jacobi-
-// preconditioned conjugate gradients for the three channels at once. Voxels without
-// extinction get J = 0. Cubic voxels (the solver's convention).
+// diagonal. The matrix is symmetric positive definite; it is solved by conjugate
+// gradients (multigrid-preconditioned, core/diffusion_multigrid.h) for the three channels
+// at once. Voxels without extinction get J = 0. Cubic voxels (the solver's convention).
 #pragma once
 
 #include <array>
