@@ -282,16 +282,12 @@ void planDiffusionTail(const SceneSummary& scene, const LpmSettings& s, SolvePla
 /// The resolution schedule of the scattering orders: which run on the 2x coarser grid
 /// (docs/multires.md), with how many directions and rays.
 void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
+    const size_t at = plan.decisions.size();  // the multi-resolution line, once the tail is known
     if (!scene.continuation && s.multires != 0) {
         const bool big = scene.storedVoxels >= size_t(s.multiresMinVoxels);
         const bool fits = scene.dims[0] >= 4 && scene.dims[1] >= 4 && scene.dims[2] >= 4;
         if (fits && (s.multires == 1 || big)) plan.coarseFrom = s.multiresAfter + 1;
-        if (plan.coarseFrom > 0)
-            plan.decisions.push_back({"multi-resolution", "orders >= " + std::to_string(plan.coarseFrom) +
-                                                              " on a 2x coarser grid (" +
-                                                              std::to_string(scene.storedVoxels) + " stored voxels" +
-                                                              (s.multires == 1 ? ", requested)" : ")")});
-        else
+        if (plan.coarseFrom == 0)
             plan.decisions.push_back(
                 {"full resolution for every order", !fits ? "the block is under 4 voxels along an axis"
                                                           : std::to_string(scene.storedVoxels) + " stored voxels < " +
@@ -300,6 +296,15 @@ void planResolution(const SceneSummary& scene, const LpmSettings& s, SolvePlan& 
     planSeparableSource(scene, s, plan);
     planDiffusionTail(scene, s, plan);
     planTailShape(scene, s, plan);
+    if (plan.coarseFrom > 0)
+        plan.decisions.insert(
+            plan.decisions.begin() + std::ptrdiff_t(at),
+            {"multi-resolution", "orders >= " + std::to_string(plan.coarseFrom) +
+                                     (plan.diffusionTail ? " in two-grid cycles without a coarse grid (their tail from "
+                                                           "the diffusion solve below; "
+                                                         : " on a 2x coarser grid (") +
+                                     std::to_string(scene.storedVoxels) + " stored voxels" +
+                                     (s.multires == 1 ? ", requested)" : ")")});
     const int n = s.directionsPerFace, half = n / 2, b = plan.binsPerFace;
     plan.coarseDirectionsPerFace =
         s.multiresDirections > 0 ? s.multiresDirections : (half >= 2 && (b == 0 || half % b == 0) ? half : n);
@@ -361,7 +366,7 @@ void planCost(const SceneSummary& scene, const LpmSettings& s, int threads, Solv
         if (d.what == "multi-resolution" || d.what == "full resolution for every order")
             d.predictedSeconds = plan.predictedSecondsPerFinePass;
     }
-    if (plan.coarseFrom > 0) {
+    if (plan.coarseFrom > 0 && !plan.diffusionTail) {
         const int nc2 = plan.coarseDirectionsPerFace;
         const double coarse =
             6.0 * nc2 * nc2 * plan.raysHigher * plan.raysHigher * (N / 8) * segmentsPerSlice(nc2) / rate;

@@ -309,15 +309,20 @@ TEST(SolvePlan, DiffusionTailAutoForThickNearlyConservativeMedia) {
     EXPECT_TRUE(says(thick,
                      "two-grid tail from a fine-grid diffusion solve: albedo up to 0.99 >= 0.97 and voxels "
                      "up to optical depth 2.5 >= 2"));
-    // No coarse tail to shape: the plan says one two-grid tail, not two.
+    // No coarse grid: the plan says one two-grid tail, not two, and prices no coarse pass.
     EXPECT_FALSE(thick.shapedTail);
     EXPECT_FALSE(says(thick, "two-grid tail shaped"));
+    EXPECT_FALSE(says(thick, "coarse pass"));
+    EXPECT_TRUE(says(thick, "multi-resolution: orders >= 2 in two-grid cycles without a coarse grid"));
+    EXPECT_FALSE(says(thick, "2x coarser grid"));
     LpmSettings off;
     off.diffusionTail = 0;
     const SolvePlan coarse = planSolve(sc, off, 2);
     EXPECT_FALSE(coarse.diffusionTail);
     EXPECT_TRUE(coarse.shapedTail);  // coarse voxels up to optical depth 5
-    sc.maxVoxelTau = 0.6;            // the coarse cycle converges quickly in thinner voxels
+    EXPECT_TRUE(says(coarse, "multi-resolution: orders >= 2 on a 2x coarser grid"));
+    EXPECT_TRUE(says(coarse, "coarse pass"));
+    sc.maxVoxelTau = 0.6;  // the coarse cycle converges quickly in thinner voxels
     EXPECT_FALSE(planSolve(sc, LpmSettings{}, 2).diffusionTail);
     sc.maxVoxelTau = 2.5;
     sc.albedo = RGB(0.9f);
