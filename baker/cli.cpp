@@ -344,7 +344,8 @@ void addSolverOptions(CLI::App& app, Args& a) {
     app.add_option(
            "--two-grid-tail", a.tail,
            "how the two-grid cycle brings its coarse tail back into each coarse voxel: auto (diffusion where the "
-           "albedo is at least 0.97 and voxels reach optical depth 2, else shaped where a coarse voxel may be "
+           "albedo is at least 0.97 and voxels reach optical depth 2 or the medium is 60 across, else shaped where a "
+           "coarse voxel may be "
            "optically thicker than 1, else flat), shaped (by the first residual its children hold: closer to full "
            "resolution voxel by voxel, 1.5-2.2x the time where coarse voxels are thicker than 1), flat, diffusion "
            "(from a diffusion solve on the fine grid, no coarse grid: thick media at albedo near 1; one unshot bin)")

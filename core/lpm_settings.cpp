@@ -80,10 +80,10 @@ void LpmSettings::validate() const {
     if (!(shapedTailAbove >= 0))
         throw SettingError("LPM", "shapedTailAbove", "must be >= 0, got " + std::to_string(shapedTailAbove));
     requireAutoOrRange("diffusionTail", diffusionTail, 0, 1);
-    if (!(diffusionTailAlbedo >= 0) || !(diffusionTailTau >= 0))
-        throw SettingError(
-            "LPM", "diffusionTailAlbedo/diffusionTailTau",
-            "must be >= 0, got " + std::to_string(diffusionTailAlbedo) + " and " + std::to_string(diffusionTailTau));
+    if (!(diffusionTailAlbedo >= 0) || !(diffusionTailTau >= 0) || !(diffusionTailSize >= 0))
+        throw SettingError("LPM", "diffusionTailAlbedo/diffusionTailTau/diffusionTailSize",
+                           "must be >= 0, got " + std::to_string(diffusionTailAlbedo) + ", " +
+                               std::to_string(diffusionTailTau) + " and " + std::to_string(diffusionTailSize));
     requireRange("cycleSmoothing", cycleSmoothing, 0, 4);
     if (!(extrapolationTolerance >= 0) || !std::isfinite(extrapolationTolerance))
         throw SettingError("LPM", "extrapolationTolerance",

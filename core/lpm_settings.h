@@ -46,10 +46,13 @@ struct LpmSettings {
     int diffusionTail = -1;               ///< the two-grid cycle's tail from a diffusion solve on the fine grid
                                           ///< instead of the coarse grid's transport (core/diffusion_tail.h;
                                           ///< docs/multires.md "Diffusion tail"): -1 auto (albedo up to at least
-                                          ///< diffusionTailAlbedo and fine voxels up to optical depth at least
-                                          ///< diffusionTailTau), 0 off, 1 on; one unshot bin, sources not separable
+                                          ///< diffusionTailAlbedo, and fine voxels up to optical depth at least
+                                          ///< diffusionTailTau or a medium at least diffusionTailSize across),
+                                          ///< 0 off, 1 on; one unshot bin, sources not separable
     double diffusionTailAlbedo = 0.97;    ///< auto threshold: the largest channel's albedo
     double diffusionTailTau = 2.0;        ///< auto threshold: the largest fine voxel's optical depth
+    double diffusionTailSize = 60.0;      ///< auto threshold: the optical size of the medium's thickest region
+                                          ///< (core/optical_size.h)
     int cycleSmoothing = 1;               ///< source-iteration passes of each two-grid cycle's residual before
                                           ///< the next coarse solve (docs/multires.md, "Smoothing"); 0 = none
     /// Set by the two-grid cycle for its coarse solves with a shaped tail: each pass's source

@@ -10,6 +10,7 @@
 
 #include "core/env_binning.h"
 #include "core/medium.h"
+#include "core/optical_size.h"
 #include "core/quadrature.h"
 #include "core/sh.h"
 
@@ -244,25 +245,32 @@ void planTailShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan& p
 
 /// Whether the two-grid cycle takes its tail from a diffusion solve on the fine grid
 /// (core/diffusion_tail.h) instead of the coarse grid's transport: on request, or (auto)
-/// where the scattering is nearly conservative in voxels thick enough for the coarse tail
-/// to converge slowly (docs/multires.md, "Diffusion tail": at albedo 0.99 the coarse cycle
-/// stopped at its cap on the 1M smoke and cumulus, the diffusion tail converged in half the
-/// time; at 0.9, or in voxels of optical depth 0.6, the coarse cycle was faster). It needs
-/// one unshot bin and full fine sources, and says why not elsewhere.
+/// where the scattering is nearly conservative and the coarse cycle would converge slowly:
+/// in voxels thick enough (docs/multires.md, "Diffusion tail": at albedo 0.99 the coarse
+/// cycle stopped at its cap on the 1M smoke and cumulus, the diffusion tail converged in
+/// half the time; at 0.9, or in voxels of optical depth 0.6, the coarse cycle was faster),
+/// or in a medium many mean free paths across whatever its voxels (the shaped coarse
+/// cycle's passes grow with the medium's optical size: 1M cumulus at voxels up to 1.2, 133
+/// across, 266 passes and 3.3x the diffusion tail's time). It needs one unshot bin and
+/// full fine sources, and says why not elsewhere.
 void planDiffusionTail(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
     if (plan.coarseFrom == 0 || s.diffusionTail == 0) return;
     const double albedo = std::max({scene.albedo[0], scene.albedo[1], scene.albedo[2]});
-    const bool wanted =
-        s.diffusionTail == 1 || (albedo >= s.diffusionTailAlbedo && scene.maxVoxelTau >= s.diffusionTailTau);
-    if (!wanted) return;
+    const bool bright = albedo >= s.diffusionTailAlbedo;
+    const bool thickVoxels = scene.maxVoxelTau >= s.diffusionTailTau;
+    const bool large = scene.opticalSize >= s.diffusionTailSize;
+    if (s.diffusionTail != 1 && !(bright && (thickVoxels || large))) return;
     std::string whyNot;
     if (plan.separableSource) whyNot = "separable fine sources";
     else if (plan.binsPerFace != 0) whyNot = "unshot bins (the diffusion tail is isotropic)";
     plan.diffusionTail = whyNot.empty();
-    const std::string why = s.diffusionTail == 1
-                                ? std::string("requested")
-                                : format("albedo up to %.3g >= %g and voxels up to optical depth %.3g >= %g", albedo,
-                                         s.diffusionTailAlbedo, scene.maxVoxelTau, s.diffusionTailTau);
+    const std::string why =
+        s.diffusionTail == 1
+            ? std::string("requested")
+            : format("albedo up to %.3g >= %g and ", albedo, s.diffusionTailAlbedo) +
+                  (thickVoxels ? format("voxels up to optical depth %.3g >= %g", scene.maxVoxelTau, s.diffusionTailTau)
+                               : format("the medium's thickest region %.3g optical depths across >= %g",
+                                        scene.opticalSize, s.diffusionTailSize));
     // Held during each solve: the operator (16 B a stored voxel), the CG's five vectors and
     // J (12 B each), the multigrid's first level (56 B a cell of the half-resolution block).
     const double bytes = double(scene.storedVoxels) * (16 + 6 * 12) + 56.0 * std::ceil(scene.dims[0] / 2.0) *
@@ -393,6 +401,7 @@ SceneSummary summarizeScene(const Medium& m, const Lights& lights, const EnvBinn
     sc.albedo = m.albedo;
     sc.continuation = continuation;
     if (continuation) return sc;
+    sc.opticalSize = opticalSize(m);
     sc.emission = m.hasEmission();
     sc.environment = lights.env && lights.env->integral() > 0;
     for (const Sun& sun : lights.suns) sc.suns += sun.irradiance.isBlack() ? 0 : 1;

@@ -25,6 +25,7 @@ struct SceneSummary {
     size_t storedVoxels = 0;    ///< voxels the solve allocates (allocated tiles only)
     size_t wantedVoxels = 0;    ///< voxels whose S the caller reads (Medium::wantedS; all stored when unset)
     double maxVoxelTau = 0;     ///< largest sigma_t times the longest voxel edge
+    double opticalSize = 0;     ///< optical size of the thickest region (core/optical_size.h)
     double g = 0;               ///< Henyey-Greenstein asymmetry of the medium
     RGB albedo;                 ///< single-scattering albedo
     bool emission = false;      ///< an emission grid feeds a source

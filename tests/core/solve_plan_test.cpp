@@ -334,6 +334,31 @@ TEST(SolvePlan, DiffusionTailAutoForThickNearlyConservativeMedia) {
     EXPECT_TRUE(says(separable, "two-grid tail from the coarse grid (diffusion would apply: albedo up to 0.99"));
 }
 
+// Thin voxels in a medium many mean free paths across: the shaped coarse cycle's passes
+// grow with the medium's optical size (docs/multires.md, "When"), the diffusion tail's do not.
+TEST(SolvePlan, DiffusionTailAutoForOpticallyLargeMedia) {
+    SceneSummary sc = smallScene();
+    sc.dims[0] = sc.dims[1] = sc.dims[2] = 160;
+    sc.storedVoxels = 160 * 160 * 160;
+    sc.maxVoxelTau = 1.2;
+    sc.opticalSize = 133;
+    sc.albedo = RGB(0.99f);
+    const SolvePlan large = planSolve(sc, LpmSettings{}, 2);
+    EXPECT_TRUE(large.diffusionTail);
+    EXPECT_TRUE(says(large,
+                     "two-grid tail from a fine-grid diffusion solve: albedo up to 0.99 >= 0.97 and the medium's "
+                     "thickest region 133 optical depths across >= 60"));
+    sc.opticalSize = 50;  // the coarse cycle is faster
+    EXPECT_FALSE(planSolve(sc, LpmSettings{}, 2).diffusionTail);
+    sc.opticalSize = 133;
+    sc.albedo = RGB(0.9f);  // absorption ends the orders early: the coarse cycle converges
+    EXPECT_FALSE(planSolve(sc, LpmSettings{}, 2).diffusionTail);
+    sc.albedo = RGB(0.99f);
+    LpmSettings higher;
+    higher.diffusionTailSize = 200;
+    EXPECT_FALSE(planSolve(sc, higher, 2).diffusionTail);
+}
+
 TEST(SolvePlan, PredictedCostScalesWithVoxelsRaysAndThreads) {
     SceneSummary sc = smallScene();
     LpmSettings fullRes;  // at 2x the voxels the block would reach the two-grid threshold
