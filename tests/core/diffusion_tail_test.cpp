@@ -122,6 +122,29 @@ TEST(DiffusionOperator, FloorRaisesTheFacesOfThickVoxelsOnly) {
     }
 }
 
+namespace {
+
+/// A scene solved three ways: at full resolution to tolerance 1e-5 with the two-grid
+/// solve's rays (the fixed point both cycles iterate toward), by the two-grid solve with
+/// the coarse grid's tail, and by the two-grid solve with the planner's tail.
+struct TailRuns {
+    LpmResult coarse, automatic;
+    double coarseError = 0, automaticError = 0;  ///< band-0 relative RMS from the fixed point
+
+    explicit TailRuns(const Scene& sc) {
+        LpmSettings withCoarse, withAuto;
+        withCoarse.multires = withAuto.multires = 1;
+        withCoarse.diffusionTail = 0;
+        const LpmResult full = twoGridFixedPoint(sc.medium, sc.lights);
+        coarse = solveLpm(sc.medium, sc.lights, withCoarse);
+        automatic = solveLpm(sc.medium, sc.lights, withAuto);
+        coarseError = band0RelativeRms(sc.medium, coarse, full);
+        automaticError = band0RelativeRms(sc.medium, automatic, full);
+    }
+};
+
+}  // namespace
+
 // The cycle with the diffusion tail (core/diffusion_cycle.cpp; the planner's choice here)
 // on a thick cloud at albedo 0.99, against the coarse grid's shaped cycle and the fixed point both iterate toward
 // (full resolution with the same rays at tolerance 1e-5): it converges in fewer fine
@@ -130,15 +153,9 @@ TEST(DiffusionOperator, FloorRaisesTheFacesOfThickVoxelsOnly) {
 TEST(DiffusionCycle, ThickHighAlbedoCloudConvergesCloserToItsFixedPoint) {
     Scene sc = makeScene(Case{"thick cloud", VolumeKind::Cloud, 0.0, 0.99, 64.0}, 40);
     sc.lights.env = &sc.sky;
-    LpmSettings ref, coarse, diffusion;
-    ref.multires = 0;
-    ref.raysHigherOrders = 1;
-    ref.tolerance = 1e-5;
-    coarse.multires = diffusion.multires = 1;
-    coarse.diffusionTail = 0;  // diffusion: auto, which takes it here (voxels up to optical depth > 2)
-    const LpmResult full = solveLpm(sc.medium, sc.lights, ref);
-    const LpmResult a = solveLpm(sc.medium, sc.lights, coarse), b = solveLpm(sc.medium, sc.lights, diffusion);
-    const double errA = band0RelativeRms(sc.medium, a, full), errB = band0RelativeRms(sc.medium, b, full);
+    const TailRuns runs(sc);  // auto takes the diffusion tail here (voxels up to optical depth > 2)
+    const LpmResult &a = runs.coarse, &b = runs.automatic;
+    const double errA = runs.coarseError, errB = runs.automaticError;
     std::printf("against full resolution: coarse tail %.5f (%zu passes, converged %d), diffusion tail %.5f (%zu, %d)\n",
                 errA, a.passes.size(), a.converged, errB, b.passes.size(), b.converged);
     EXPECT_TRUE(saidDecision(b, "two-grid tail from a fine-grid diffusion solve: albedo up to 0.99 >= 0.97"));
@@ -146,7 +163,7 @@ TEST(DiffusionCycle, ThickHighAlbedoCloudConvergesCloserToItsFixedPoint) {
     EXPECT_TRUE(b.converged);
     // Both cycles test the absolute residual too, and record it against its line.
     for (const LpmResult* r : {&a, &b}) {
-        EXPECT_DOUBLE_EQ(r->absoluteLine, 10 * coarse.tolerance);
+        EXPECT_DOUBLE_EQ(r->absoluteLine, 10 * LpmSettings{}.tolerance);
         EXPECT_GT(r->absoluteResidual, 0.0);
     }
     EXPECT_LE(b.absoluteResidual, b.absoluteLine);
@@ -172,4 +189,34 @@ TEST(DiffusionCycle, ThickVoxelsConvergeInTheAbsoluteResidualToo) {
     EXPECT_TRUE(r.converged);
     EXPECT_LE(r.absoluteResidual, r.absoluteLine);
     EXPECT_NEAR(r.absorbed + r.escaped + r.unshot, r.injected, 2e-3 * r.injected);
+}
+
+// Thin voxels, a large medium: a ball 36 voxels across at voxel optical depth 1.8, under
+// the depth-2 line but 65 optical depths across. Auto takes the diffusion tail by the
+// medium's size (core/optical_size.h), converges in fewer passes than the coarse cycle
+// (whose passes grow with the size) and ends closer to the full-resolution fixed point.
+TEST(DiffusionCycle, OpticallyLargeMediumOfThinVoxelsTakesItBySize) {
+    Scene sc;
+    sc.medium.allocate(40, 40, 40);
+    for (int z = 0; z < 40; ++z)
+        for (int y = 0; y < 40; ++y)
+            for (int x = 0; x < 40; ++x) {
+                const double r = std::hypot(x - 19.5, y - 19.5, z - 19.5);
+                sc.medium.sigmaT[sc.medium.index(x, y, z)] = r < 18 ? 1.8f : 0.0f;
+            }
+    sc.medium.albedo = RGB(0.99f);
+    sc.lights.env = &sc.sky;
+    const TailRuns runs(sc);
+    const LpmResult &a = runs.coarse, &b = runs.automatic;
+    const double errA = runs.coarseError, errB = runs.automaticError;
+    std::printf("against full resolution: coarse tail %.5f (%zu passes), diffusion tail %.5f (%zu)\n", errA,
+                a.passes.size(), errB, b.passes.size());
+    EXPECT_TRUE(saidDecision(b,
+                             "two-grid tail from a fine-grid diffusion solve: albedo up to 0.99 >= 0.97 and the "
+                             "medium's thickest region"));
+    EXPECT_TRUE(b.converged);
+    EXPECT_LE(b.absoluteResidual, b.absoluteLine);
+    EXPECT_LT(b.passes.size(), a.passes.size());
+    EXPECT_LT(errB, errA);
+    EXPECT_NEAR(b.absorbed + b.escaped + b.unshot, b.injected, 2e-3 * b.injected);
 }

@@ -148,6 +148,15 @@ inline int coarsePassCount(const LpmResult& r) {
     return n;
 }
 
+/// The fixed point a two-grid solve iterates toward: full resolution with its rays (one
+/// per voxel after single scattering), converged to tolerance 1e-5.
+inline LpmResult twoGridFixedPoint(const Medium& m, const Lights& lights, LpmSettings s = {}) {
+    s.multires = 0;
+    s.raysHigherOrders = 1;
+    s.tolerance = 1e-5;
+    return solveLpm(m, lights, s);
+}
+
 inline bool saidDecision(const LpmResult& r, const char* what) {
     for (const auto& d : r.decisions)
         if (d.find(what) != std::string::npos) return true;

@@ -29,9 +29,7 @@ double boxSize(double tx, double ty, double tz) {
 
 }  // namespace
 
-TEST(OpticalSize, CubeGivesItsOpticalSide) {
-    EXPECT_NEAR(opticalSize(uniformBox(24, 24, 24, 0.5f)), 12.0, 1e-5);
-}
+TEST(OpticalSize, CubeGivesItsOpticalSide) { EXPECT_NEAR(opticalSize(uniformBox(24, 24, 24, 0.5f)), 12.0, 1e-5); }
 
 TEST(OpticalSize, BoxCombinesItsThreeRowDepths) {
     EXPECT_NEAR(opticalSize(uniformBox(4, 8, 16, 0.5f)), boxSize(2, 4, 8), 1e-6);
@@ -48,7 +46,7 @@ TEST(OpticalSize, ThickestRegionWins) {
     for (int z = 0; z < 8; ++z)
         for (int y = 0; y < 8; ++y)
             for (int x = 0; x < 8; ++x) m.sigmaT[m.index(x, y, z)] = 4.0f;  // a cube of optical side 32
-    EXPECT_NEAR(opticalSize(m), boxSize(32, 32, 32.25), 1e-4);  // its z rows cross the slab too
+    EXPECT_NEAR(opticalSize(m), boxSize(32, 32, 32.25), 1e-4);              // its z rows cross the slab too
 }
 
 // Sparse storage: tiles at opposite corners of a 32^3 block share no row, so each is a
@@ -70,6 +68,4 @@ TEST(OpticalSize, SparseRowsPassThroughGaps) {
     EXPECT_NEAR(opticalSize(row), boxSize(16, 8, 8), 1e-5);
 }
 
-TEST(OpticalSize, EmptyMediumHasNoSize) {
-    EXPECT_EQ(opticalSize(uniformBox(8, 8, 8, 0.0f)), 0.0);
-}
+TEST(OpticalSize, EmptyMediumHasNoSize) { EXPECT_EQ(opticalSize(uniformBox(8, 8, 8, 0.0f)), 0.0); }

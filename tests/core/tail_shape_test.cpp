@@ -204,13 +204,10 @@ struct SmoothingRuns {
 SmoothingRuns smoothingRuns(const Case& cs, const LpmSettings& base) {
     Scene sc = makeScene(cs, 32);
     sc.lights.env = &sc.sky;
-    LpmSettings ref = base, plain = base, smoothed = base;
-    ref.multires = 0;
-    ref.raysHigherOrders = 1;
-    ref.tolerance = 1e-5;
+    LpmSettings plain = base, smoothed = base;
     plain.multires = smoothed.multires = 1;
     plain.cycleSmoothing = 0;
-    const LpmResult full = solveLpm(sc.medium, sc.lights, ref);
+    const LpmResult full = twoGridFixedPoint(sc.medium, sc.lights, base);
     SmoothingRuns r{solveLpm(sc.medium, sc.lights, plain), solveLpm(sc.medium, sc.lights, smoothed)};
     r.plainError = band0RelativeRms(sc.medium, r.plain, full);
     r.smoothError = band0RelativeRms(sc.medium, r.smoothed, full);
