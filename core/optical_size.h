@@ -20,7 +20,7 @@
 namespace lpm {
 
 /// T above; 0 for a medium without extinction. Visits every stored voxel twice and holds
-/// three planes of row depths (one float per row).
+/// three planes of row depths (one float per row); the same result for any thread count.
 double opticalSize(const Medium& m);
 
 }  // namespace lpm

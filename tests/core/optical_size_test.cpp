@@ -1,7 +1,7 @@
 // The optical size of a medium's thickest region (core/optical_size.h): exact on uniform
 // boxes (a cube gives its optical side, a box its three row depths combined), voxel edges
 // per axis, the thickest region winning over a wide thin one, rows through the gaps of a
-// sparse block, and nothing for an empty medium.
+// sparse block, nothing for an empty medium, and the same bits for any thread count.
 #include "core/optical_size.h"
 
 #include <gtest/gtest.h>
@@ -10,6 +10,9 @@
 #include <cmath>
 #include <cstdint>
 #include <vector>
+
+#include "core/parallel.h"
+#include "test_scenes.h"
 
 using namespace lpm;
 
@@ -69,3 +72,14 @@ TEST(OpticalSize, SparseRowsPassThroughGaps) {
 }
 
 TEST(OpticalSize, EmptyMediumHasNoSize) { EXPECT_EQ(opticalSize(uniformBox(8, 8, 8, 0.0f)), 0.0); }
+
+TEST(OpticalSize, SameForAnyThreadCount) {
+    const Medium m = lpm::test::makeVolume(lpm::test::VolumeKind::Cloud, 40, 24.0);
+    double one = 0;
+    {
+        ThreadLimit limit(1);
+        one = opticalSize(m);
+    }
+    EXPECT_GT(one, 0.0);
+    EXPECT_EQ(opticalSize(m), one);
+}
