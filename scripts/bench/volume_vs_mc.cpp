@@ -14,7 +14,9 @@
 // before raysHigherOrders and the coarse grid's earlier GMRES), full-sources (the two-grid
 // solve's fine sources held in full, bins per voxel, not separably), full-tail (the coarse
 // solve iterated to its tolerance, no geometric tail), constant / linear (the source inside
-// a voxel, instead of the planner's choice), tight (a tenth of the default stop tolerance).
+// a voxel, instead of the planner's choice), tight (a tenth of the default stop tolerance),
+// coarse-tail / diffusion-tail (the two-grid cycle's tail from the coarse grid, or from a
+// diffusion solve, instead of the planner's choice).
 #include <sys/resource.h>
 
 #include <cstdio>
@@ -62,6 +64,8 @@ LpmSettings settingsNamed(const std::string& name) {
     else if (name == "constant") s.linearSource = 0;  // the voxel-constant (step) source everywhere
     else if (name == "linear") s.linearSource = 1;
     else if (name == "tight") s.tolerance = 1e-4;  // a tenth of the default stop tolerance
+    else if (name == "coarse-tail") s.diffusionTail = 0;  // the two-grid cycle's tail from the coarse grid
+    else if (name == "diffusion-tail") s.diffusionTail = 1;
     else if (name != "default") {
         std::fprintf(stderr, "unknown setting '%s'\n", name.c_str());
         std::exit(2);
