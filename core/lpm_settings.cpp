@@ -66,6 +66,7 @@ void LpmSettings::validate() const {
     requirePositive("krylovBytes", krylovBytes);
     requireAutoOrRange("linearSource", linearSource, 0, 1);
     requirePositive("linearSourceAbove", linearSourceAbove);
+    requirePositive("linearSourceDiffusive", linearSourceDiffusive);
     requirePositive("linearSourceVoxelCap", linearSourceVoxelCap);
     requireAutoOrRange("deltaM", deltaM, 0, 1);
     requireInterval("deltaMAbove", deltaMAbove, 0, 1, false);

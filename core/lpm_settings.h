@@ -68,6 +68,9 @@ struct LpmSettings {
                                         ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
                                         ///< inside each voxel (linear characteristics; 4x the unshot memory)
     double linearSourceAbove = 2.0;     ///< auto threshold: largest per-voxel optical depth
+    double linearSourceDiffusive = 12;  ///< auto threshold (albedo >= diffusionTailAlbedo, one unshot bin): the
+                                        ///< largest per-voxel optical depth times the
+                                        ///< medium's optical size in diffusion lengths, T sqrt(3 (1 - albedo))
     double linearSourceVoxelCap = 8.0;  ///< voxels optically thicker than this keep a constant source
     int deltaM = -1;                    ///< forward-peak truncation (delta-M, f = g^4): -1 auto (on when
                                         ///< g > deltaMAbove and the albedo is grey), 0 off, 1 on (g > 0, grey albedo)

@@ -136,12 +136,40 @@ std::string linearSourceTooLarge(const SceneSummary& scene, const SolvePlan& pla
         bins, sourceBytes / MiB, line / MiB, kMemoryLinePerVoxel, kMemoryLineBase / MiB);
 }
 
+/// Why auto chose the source shape: the voxels' optical depth and, with one unshot bin at
+/// albedo diffusionTailAlbedo and above, the medium's depth in diffusion lengths.
+std::string sourceShapeReason(const SceneSummary& scene, const LpmSettings& s, bool thick, bool deep,
+                              double albedo, double diffusive) {
+    if (thick) return format("largest voxel optical depth %.3g > %.3g", scene.maxVoxelTau, s.linearSourceAbove);
+    const std::string voxels = format("largest voxel optical depth %.3g <= %.3g", scene.maxVoxelTau,
+                                      s.linearSourceAbove);
+    if (scene.opticalSize <= 0 || albedo < s.diffusionTailAlbedo || (!deep && diffusive >= s.linearSourceDiffusive))
+        return voxels;
+    return voxels + format(deep ? ", but times the medium's %.3g diffusion lengths across %.3g >= %g: the voxel-"
+                                  "constant source's error compounds with depth"
+                                : " and times the medium's %.3g diffusion lengths across %.3g < %g",
+                           diffusive / std::max(scene.maxVoxelTau, 1e-30), diffusive, s.linearSourceDiffusive);
+}
+
 /// Source shape inside a voxel. A voxel-constant (step) source leaks light across
 /// optically thick voxels (it is carried to the exit face undamped); a linear source with
-/// deposited first moments follows the decay inside the voxel (docs/lpm_solver.md).
+/// deposited first moments follows the decay inside the voxel (docs/lpm_solver.md). Auto:
+/// linear in voxels thicker than linearSourceAbove, or where the step source's error
+/// compounds with depth: nearly conservative media (albedo from diffusionTailAlbedo, one
+/// unshot bin) whose voxels times their size in diffusion lengths reach
+/// linearSourceDiffusive, where
+/// light reaches the inside by diffusing through many voxels (docs/accuracy.md, "Large
+/// media": a 1M cumulus at albedo 0.99, voxels up to 1.2, 133 optical depths across, was
+/// 24% per voxel from MC with the constant source, 5.9% with the linear one).
 void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
     const double tau = scene.maxVoxelTau;
-    plan.linearSource = s.linearSource == 1 || (s.linearSource < 0 && tau > s.linearSourceAbove);
+    const double albedo = std::max({scene.albedo[0], scene.albedo[1], scene.albedo[2]});
+    const double diffusive = tau * scene.opticalSize * std::sqrt(3.0 * std::max(0.0, 1.0 - albedo));
+    // Measured with one unshot bin at albedo 0.99: with bins a linear source holds 4
+    // moments in each (no separable form), 6-10x the time (linearSourceTooLarge).
+    const bool thick = tau > s.linearSourceAbove,
+               deep = plan.binsPerFace == 0 && albedo >= s.diffusionTailAlbedo && diffusive >= s.linearSourceDiffusive;
+    plan.linearSource = s.linearSource == 1 || (s.linearSource < 0 && (thick || deep));
     const std::string tooLarge = s.linearSource < 0 && plan.linearSource ? linearSourceTooLarge(scene, plan) : "";
     if (!tooLarge.empty()) plan.linearSource = false;
     const char* shape = plan.linearSource ? "linear source inside voxels" : "voxel-constant source inside voxels";
@@ -152,10 +180,7 @@ void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan&
                               "accurate in the thick voxels)"
                             : "";
     if (s.linearSource < 0)
-        plan.decisions.push_back({shape, format(tau > s.linearSourceAbove ? "largest voxel optical depth %.3g > %.3g"
-                                                                          : "largest voxel optical depth %.3g <= %.3g",
-                                                tau, s.linearSourceAbove) +
-                                             price + tooLarge});
+        plan.decisions.push_back({shape, sourceShapeReason(scene, s, thick, deep, albedo, diffusive) + price + tooLarge});
     else plan.decisions.push_back({std::string(shape) + " (requested)", ""});
     const double leakAbove = plan.linearSource ? s.linearSourceVoxelCap : 2.0;
     if (tau > leakAbove)
