@@ -57,6 +57,7 @@ std::string canonicalSettings(const BakeOptions& o) {
     num("krylov_restart", s.krylovRestart);
     num("source", s.linearSource);
     num("linear_source_above", s.linearSourceAbove);
+    num("linear_source_diffusive", s.linearSourceDiffusive);
     num("linear_source_voxel_cap", s.linearSourceVoxelCap);
     num("delta_m", s.deltaM);
     num("delta_m_above", s.deltaMAbove);
@@ -68,6 +69,9 @@ std::string canonicalSettings(const BakeOptions& o) {
     num("shaped_coarse_tail", s.shapedCoarseTail);
     num("shaped_tail_above", s.shapedTailAbove);
     num("diffusion_tail", s.diffusionTail);
+    num("diffusion_tail_albedo", s.diffusionTailAlbedo);
+    num("diffusion_tail_tau", s.diffusionTailTau);
+    num("diffusion_tail_size", s.diffusionTailSize);
     num("cycle_smoothing", s.cycleSmoothing);
     num("multires_min_voxels", s.multiresMinVoxels);
     num("multires_directions", s.multiresDirections);

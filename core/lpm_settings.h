@@ -65,7 +65,8 @@ struct LpmSettings {
     /// still be as good as the bake's tolerance asks (docs/multires.md, "Geometric tail").
     double extrapolationTolerance = 0;
     int linearSource = -1;              ///< -1 auto (on when a voxel is optically thicker than
-                                        ///< linearSourceAbove), 0 voxel-constant (step) source, 1 linear source
+                                        ///< linearSourceAbove, or see linearSourceDiffusive), 0 voxel-constant
+                                        ///< (step) source, 1 linear source
                                         ///< inside each voxel (linear characteristics; 4x the unshot memory)
     double linearSourceAbove = 2.0;     ///< auto threshold: largest per-voxel optical depth
     double linearSourceDiffusive = 12;  ///< auto threshold (albedo >= diffusionTailAlbedo, one unshot bin): the

@@ -73,6 +73,7 @@ void planDeltaM(SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
     plan.deltaMFraction = f;
     plan.gPropagation = (g - f) / (1 - f);
     scene.maxVoxelTau *= k;
+    scene.opticalSize *= k;
     plan.decisions.push_back(
         {format("delta-M forward-peak truncation (g = %.4g > %.3g)", g, s.deltaM > 0 ? 0.0 : s.deltaMAbove),
          format("f = g^4 = %.4g of scattering treated as unscattered; propagation with g' = %.4g, albedo %.4g, "
@@ -138,11 +139,11 @@ std::string linearSourceTooLarge(const SceneSummary& scene, const SolvePlan& pla
 
 /// Why auto chose the source shape: the voxels' optical depth and, with one unshot bin at
 /// albedo diffusionTailAlbedo and above, the medium's depth in diffusion lengths.
-std::string sourceShapeReason(const SceneSummary& scene, const LpmSettings& s, bool thick, bool deep,
-                              double albedo, double diffusive) {
+std::string sourceShapeReason(const SceneSummary& scene, const LpmSettings& s, bool thick, bool deep, double albedo,
+                              double diffusive) {
     if (thick) return format("largest voxel optical depth %.3g > %.3g", scene.maxVoxelTau, s.linearSourceAbove);
-    const std::string voxels = format("largest voxel optical depth %.3g <= %.3g", scene.maxVoxelTau,
-                                      s.linearSourceAbove);
+    const std::string voxels =
+        format("largest voxel optical depth %.3g <= %.3g", scene.maxVoxelTau, s.linearSourceAbove);
     if (scene.opticalSize <= 0 || albedo < s.diffusionTailAlbedo || (!deep && diffusive >= s.linearSourceDiffusive))
         return voxels;
     return voxels + format(deep ? ", but times the medium's %.3g diffusion lengths across %.3g >= %g: the voxel-"
@@ -180,7 +181,8 @@ void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan&
                               "accurate in the thick voxels)"
                             : "";
     if (s.linearSource < 0)
-        plan.decisions.push_back({shape, sourceShapeReason(scene, s, thick, deep, albedo, diffusive) + price + tooLarge});
+        plan.decisions.push_back(
+            {shape, sourceShapeReason(scene, s, thick, deep, albedo, diffusive) + price + tooLarge});
     else plan.decisions.push_back({std::string(shape) + " (requested)", ""});
     const double leakAbove = plan.linearSource ? s.linearSourceVoxelCap : 2.0;
     if (tau > leakAbove)

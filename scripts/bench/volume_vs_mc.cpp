@@ -63,7 +63,7 @@ LpmSettings settingsNamed(const std::string& name) {
     else if (name == "full-tail") s.coarseTailExtrapolation = false;
     else if (name == "constant") s.linearSource = 0;  // the voxel-constant (step) source everywhere
     else if (name == "linear") s.linearSource = 1;
-    else if (name == "tight") s.tolerance = 1e-4;  // a tenth of the default stop tolerance
+    else if (name == "tight") s.tolerance = 1e-4;         // a tenth of the default stop tolerance
     else if (name == "coarse-tail") s.diffusionTail = 0;  // the two-grid cycle's tail from the coarse grid
     else if (name == "diffusion-tail") s.diffusionTail = 1;
     else if (name != "default") {

@@ -27,6 +27,18 @@ SceneSummary smallScene() {
     return sc;
 }
 
+/// The 1M cumulus at density scale 1.2: 160^3, voxels up to optical depth 1.2, 133
+/// optical depths across, albedo 0.99.
+SceneSummary largeCumulus() {
+    SceneSummary sc = smallScene();
+    sc.dims[0] = sc.dims[1] = sc.dims[2] = 160;
+    sc.storedVoxels = 160 * 160 * 160;
+    sc.maxVoxelTau = 1.2;
+    sc.opticalSize = 133;
+    sc.albedo = RGB(0.99f);
+    return sc;
+}
+
 bool says(const SolvePlan& p, const std::string& what) {
     for (const std::string& l : p.lines())
         if (l.find(what) != std::string::npos) return true;
@@ -334,29 +346,49 @@ TEST(SolvePlan, DiffusionTailAutoForThickNearlyConservativeMedia) {
     EXPECT_TRUE(says(separable, "two-grid tail from the coarse grid (diffusion would apply: albedo up to 0.99"));
 }
 
-// Thin voxels in a medium many mean free paths across: the shaped coarse cycle's passes
-// grow with the medium's optical size (docs/multires.md, "When"), the diffusion tail's do not.
-TEST(SolvePlan, DiffusionTailAutoForOpticallyLargeMedia) {
-    SceneSummary sc = smallScene();
-    sc.dims[0] = sc.dims[1] = sc.dims[2] = 160;
-    sc.storedVoxels = 160 * 160 * 160;
-    sc.maxVoxelTau = 1.2;
-    sc.opticalSize = 133;
-    sc.albedo = RGB(0.99f);
+// A nearly conservative medium of thin voxels many mean free paths across (the 1M cumulus
+// at density scale 1.2) takes two decisions by its size:
+// - the diffusion tail: the shaped coarse cycle's passes grow with the medium's optical
+//   size (docs/multires.md, "The medium's optical size"), the diffusion tail's do not;
+// - the linear source under its depth-2 line: the voxel-constant source's error compounds
+//   with depth in diffusion lengths (24% per voxel from MC against 5.9% linear;
+//   docs/accuracy.md, "Large media").
+TEST(SolvePlan, OpticallyLargeNearlyConservativeMediaTakeTheDiffusionTailAndLinearSource) {
+    SceneSummary sc = largeCumulus();
     const SolvePlan large = planSolve(sc, LpmSettings{}, 2);
     EXPECT_TRUE(large.diffusionTail);
     EXPECT_TRUE(says(large,
                      "two-grid tail from a fine-grid diffusion solve: albedo up to 0.99 >= 0.97 and the medium's "
                      "thickest region 133 optical depths across >= 60"));
-    sc.opticalSize = 50;  // the coarse cycle is faster
-    EXPECT_FALSE(planSolve(sc, LpmSettings{}, 2).diffusionTail);
-    sc.opticalSize = 133;
-    sc.albedo = RGB(0.9f);  // absorption ends the orders early: the coarse cycle converges
-    EXPECT_FALSE(planSolve(sc, LpmSettings{}, 2).diffusionTail);
-    sc.albedo = RGB(0.99f);
-    LpmSettings higher;
-    higher.diffusionTailSize = 200;
-    EXPECT_FALSE(planSolve(sc, higher, 2).diffusionTail);
+    EXPECT_TRUE(large.linearSource);
+    EXPECT_TRUE(says(large,
+                     "linear source inside voxels: largest voxel optical depth 1.2 <= 2, but times the "
+                     "medium's 23 diffusion lengths across 27.6 >= 12"));
+    struct Variant {
+        double size;
+        float albedo;
+        double tailLine;
+        bool tail, linear;
+    };
+    for (const Variant& v : {Variant{50, 0.99f, 60, false, false},  // coarse cycle faster; 1.2 x 8.7 lengths
+                             Variant{133, 0.9f, 60, false, false},  // measured at 0.99 and 0.97-0.99
+                             Variant{133, 0.99f, 200, false, true}})
+    {  // the tail's line is a setting
+        SceneSummary at = sc;
+        at.opticalSize = v.size;
+        at.albedo = RGB(v.albedo);
+        LpmSettings s;
+        s.diffusionTailSize = v.tailLine;
+        const SolvePlan p = planSolve(at, s, 2);
+        EXPECT_EQ(p.diffusionTail, v.tail) << v.size << " " << v.albedo;
+        EXPECT_EQ(p.linearSource, v.linear) << v.size << " " << v.albedo;
+    }
+    sc.g = 0.6;  // unshot bins: a linear source holds 4 moments in each, 6-10x the time
+    const SolvePlan binned = planSolve(sc, LpmSettings{}, 2);
+    ASSERT_GT(binned.binsPerFace, 0);
+    EXPECT_FALSE(binned.linearSource);
+    EXPECT_TRUE(says(binned, "voxel-constant source inside voxels: largest voxel optical depth"));
+    EXPECT_FALSE(says(binned, "diffusion lengths"));
 }
 
 TEST(SolvePlan, PredictedCostScalesWithVoxelsRaysAndThreads) {
