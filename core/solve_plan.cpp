@@ -139,13 +139,12 @@ std::string linearSourceTooLarge(const SceneSummary& scene, const SolvePlan& pla
 
 /// Why auto chose the source shape: the voxels' optical depth and, with one unshot bin at
 /// albedo diffusionTailAlbedo and above, the medium's depth in diffusion lengths.
-std::string sourceShapeReason(const SceneSummary& scene, const LpmSettings& s, bool thick, bool deep, double albedo,
+std::string sourceShapeReason(const SceneSummary& scene, const LpmSettings& s, bool thick, bool deep, bool deepApplies,
                               double diffusive) {
     if (thick) return format("largest voxel optical depth %.3g > %.3g", scene.maxVoxelTau, s.linearSourceAbove);
     const std::string voxels =
         format("largest voxel optical depth %.3g <= %.3g", scene.maxVoxelTau, s.linearSourceAbove);
-    if (scene.opticalSize <= 0 || albedo < s.diffusionTailAlbedo || (!deep && diffusive >= s.linearSourceDiffusive))
-        return voxels;
+    if (!deepApplies || scene.opticalSize <= 0) return voxels;
     return voxels + format(deep ? ", but times the medium's %.3g diffusion lengths across %.3g >= %g: the voxel-"
                                   "constant source's error compounds with depth"
                                 : " and times the medium's %.3g diffusion lengths across %.3g < %g",
@@ -168,8 +167,8 @@ void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan&
     const double diffusive = tau * scene.opticalSize * std::sqrt(3.0 * std::max(0.0, 1.0 - albedo));
     // Measured with one unshot bin at albedo 0.99: with bins a linear source holds 4
     // moments in each (no separable form), 6-10x the time (linearSourceTooLarge).
-    const bool thick = tau > s.linearSourceAbove,
-               deep = plan.binsPerFace == 0 && albedo >= s.diffusionTailAlbedo && diffusive >= s.linearSourceDiffusive;
+    const bool deepApplies = plan.binsPerFace == 0 && albedo >= s.diffusionTailAlbedo;
+    const bool thick = tau > s.linearSourceAbove, deep = deepApplies && diffusive >= s.linearSourceDiffusive;
     plan.linearSource = s.linearSource == 1 || (s.linearSource < 0 && (thick || deep));
     const std::string tooLarge = s.linearSource < 0 && plan.linearSource ? linearSourceTooLarge(scene, plan) : "";
     if (!tooLarge.empty()) plan.linearSource = false;
@@ -182,7 +181,7 @@ void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan&
                             : "";
     if (s.linearSource < 0)
         plan.decisions.push_back(
-            {shape, sourceShapeReason(scene, s, thick, deep, albedo, diffusive) + price + tooLarge});
+            {shape, sourceShapeReason(scene, s, thick, deep, deepApplies, diffusive) + price + tooLarge});
     else plan.decisions.push_back({std::string(shape) + " (requested)", ""});
     const double leakAbove = plan.linearSource ? s.linearSourceVoxelCap : 2.0;
     if (tau > leakAbove)
