@@ -156,11 +156,11 @@ std::string sourceShapeReason(const SceneSummary& scene, const LpmSettings& s, b
 /// deposited first moments follows the decay inside the voxel (docs/lpm_solver.md). Auto:
 /// linear in voxels thicker than linearSourceAbove, or where the step source's error
 /// compounds with depth: nearly conservative media (albedo from diffusionTailAlbedo, one
-/// unshot bin) whose voxels times their size in diffusion lengths reach
-/// linearSourceDiffusive, where
-/// light reaches the inside by diffusing through many voxels (docs/accuracy.md, "Large
-/// media": a 1M cumulus at albedo 0.99, voxels up to 1.2, 133 optical depths across, was
-/// 24% per voxel from MC with the constant source, 5.9% with the linear one).
+/// unshot bin) whose voxel depth times their size in diffusion lengths reaches
+/// linearSourceDiffusive, where light reaches the inside by diffusing through many voxels
+/// (docs/accuracy.md, "Large media": a 1M cumulus at albedo 0.99, voxels up to 1.2, 133
+/// optical depths across, was 24% per voxel from MC with the constant source, 5.9% with
+/// the linear one).
 void planSourceShape(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
     const double tau = scene.maxVoxelTau;
     const double albedo = std::max({scene.albedo[0], scene.albedo[1], scene.albedo[2]});
