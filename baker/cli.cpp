@@ -353,8 +353,9 @@ void addSolverOptions(CLI::App& app, Args& a) {
         ->check(CLI::IsMember({"auto", "shaped", "flat", "diffusion"}))
         ->group(gS);
     app.add_option("--source", a.sourceShape,
-                   "source inside a voxel: auto (linear when a voxel is thicker than optical depth 2; at g != 0 only "
-                   "while its per-bin sources fit 300 B a voxel + 200 MiB), constant, "
+                   "source inside a voxel: auto (linear when a voxel is thicker than optical depth 2, or at albedo "
+                   "0.97 and above with g = 0 where the voxels' depth times the medium's size in diffusion lengths "
+                   "reaches 12; at g != 0 only while its per-bin sources fit 300 B a voxel + 200 MiB), constant, "
                    "linear (linear characteristics: leaks far less light through thick voxels; 3-5x the time)")
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "constant", "linear"}))
