@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <string>
 
 #include "core/diffusion_multigrid.h"
 #include "core/diffusion_tail.h"
@@ -45,28 +46,63 @@ constexpr double kDiffusionCap = 1.0;
 /// floors 0.15-0.2 converged every cloud measured (docs/multires.md, "Diffusion tail").
 constexpr double kDiffusionFloor = 0.15;
 
+/// What both forms of the cycle share: the diffusion solve of a residual's means (the
+/// operator and its multigrid built for each solve and freed after it, not held across the
+/// fine pass: 36 B a stored voxel off the peak; the multigrid: CG 3.0 s instead of Jacobi's
+/// 7.6 s on the 1M smoke at albedo 0.99) and the factor omega that follows the residual.
+class DiffusionTail {
+public:
+    explicit DiffusionTail(const Medium& m)
+        : m_(m), transport_(1.0 - (m.albedo[0] + m.albedo[1] + m.albedo[2]) / 3.0 * m.g) {}
+    /// J for the means b (voxel v's channel c at b[v * stride + c]), [voxel][rgb].
+    DiffusionSolve solve(const float* b, size_t stride) {
+        const auto tc = std::chrono::steady_clock::now();
+        const DiffusionOperator diffusion(m_, kDiffusionCap, kDiffusionFloor, transport_);
+        const DiffusionMultigrid multigrid(diffusion);
+        DiffusionSolve d = diffusion.solve(b, stride, m_.albedo, kCgTolerance, kCgMaxIterations, &multigrid);
+        cgSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - tc).count();
+        cgIterations += d.iterations;
+        return d;
+    }
+    /// The tail factor omega rho_c for channel c.
+    float scale(int c) const { return omega * m_.albedo[c]; }
+    /// After a cycle took the signed power inPower to outPower: the next factor.
+    void update(double inPower, double outPower) {
+        if (inPower != 0) omega = float(std::clamp(omega / (1.0 - outPower / inPower), 0.5, 1.0));
+        lowest = std::min(lowest, omega);
+    }
+    /// The solve's line for the result's decisions.
+    std::string summary(int cycles, double left, double absolute) const {
+        char buf[300];
+        std::snprintf(buf, sizeof buf,
+                      "two-grid: diffusion tail, %d cycle(s) of a diffusion solve and one fine pass, %d CG "
+                      "iterations, factor down to %.3g, each residual smoothed by fine passes; source left %.3g of "
+                      "the input (absolute %.3g)",
+                      cycles, cgIterations, lowest, left, absolute);
+        return buf;
+    }
+    double cgSeconds = 0;
+
+private:
+    const Medium& m_;
+    double transport_;  ///< sigma_tr / sigma_t = 1 - rho g
+    float omega = 1.0f, lowest = 1.0f;
+    int cgIterations = 0;
+};
+
 }  // namespace
 
 void LpmSolve::continueWithDiffusion(int firstPass) {
+    if (sep_) {
+        continueWithDiffusionSeparable(firstPass);
+        return;
+    }
     const auto tp = Clock::now();
     std::vector<float> r = std::move(next_);
     unshot_ = std::vector<float>();
     const size_t per = size_t(nb_) * M_ * 3;
-    double cgSeconds = 0;
-    // J from r's means (each voxel's first values of its bin-0 row), the operator and its
-    // multigrid built for the solve and freed before the fine pass (not held across it:
-    // 36 B a stored voxel off the peak). The multigrid: CG 3.0 s instead of Jacobi's 7.6 s
-    // on the 1M smoke at albedo 0.99.
-    const auto solveDiffusion = [&] {
-        const auto tc = Clock::now();
-        const DiffusionOperator diffusion(m_, kDiffusionCap, kDiffusionFloor);
-        const DiffusionMultigrid multigrid(diffusion);
-        DiffusionSolve d = diffusion.solve(r.data(), per, m_.albedo, kCgTolerance, kCgMaxIterations, &multigrid);
-        cgSeconds += std::chrono::duration<double>(Clock::now() - tc).count();
-        return d;
-    };
-    int cycles = 0, p = firstPass, cgIterations = 0;
-    float omega = 1.0f, lowest = 1.0f;
+    DiffusionTail tail(m_);
+    int cycles = 0, p = firstPass;
     Residual left{res_.passes.back().scattered, sourcePower(r, true)};
     for (; cycles < kMaxDiffusionCycles && p < s_.maxOrders; ++cycles) {
         // The pass's buffers go back to the heap before the CG: its vectors take their place
@@ -74,13 +110,12 @@ void LpmSolve::continueWithDiffusion(int firstPass) {
         // with; docs/performance.md, session 50).
         runner_->releaseBuffers();
         const double inPower = sourcePower(r);
-        const DiffusionSolve d = solveDiffusion();
-        cgIterations += d.iterations;
+        // J from r's means: each voxel's first values of its bin-0 row (one bin here)
+        const DiffusionSolve d = tail.solve(r.data(), per);
         const auto addTail = [&](std::vector<float>& u, float sign) {
             parallelForChunks(N_, 1 << 14, [&](size_t vb, size_t ve) {
                 for (size_t v = vb; v < ve; ++v)
-                    for (int c = 0; c < 3; ++c)
-                        u[v * per + size_t(c)] += sign * omega * m_.albedo[c] * d.J[v * 3 + size_t(c)];
+                    for (int c = 0; c < 3; ++c) u[v * per + size_t(c)] += sign * tail.scale(c) * d.J[v * 3 + size_t(c)];
             });
         };
         addTail(r, 1.0f);  // r now holds E
@@ -90,28 +125,78 @@ void LpmSolve::continueWithDiffusion(int firstPass) {
         left = {sourcePower(r), sourcePower(r, true)};
         res_.passes.back().scattered = std::fabs(left.power);
         reportCycle(cycles, left);
-        if (inPower != 0) omega = float(std::clamp(omega / (1.0 - left.power / inPower), 0.5, 1.0));
-        lowest = std::min(lowest, omega);
+        tail.update(inPower, left.power);
         if (!cycleConverged(left, true)) left = smoothResidual(r, p);
         if (cycleConverged(left, true)) {
             ++cycles;
             break;
         }
     }
+    finishDiffusionCycles(cycles, left, tail.summary(cycles, res_.input > 0 ? std::fabs(left.power) / res_.input : 0.0,
+                                                     res_.input > 0 ? left.absolute / res_.input : 0.0),
+                          tail.cgSeconds, tp);
+}
+
+// The same cycle with separable fine sources (core/separable_source.h): the tail omega rho J
+// is isotropic, held as E's isotropic part (every bin of a fine voxel the same), and taken
+// from K E's separable form as the fold finishes (SeparableFold::finish), so r' holds none.
+// J solves for r's mean over the bins, m_f / W. With g != 0 the diffusion coefficient is the
+// transport one, 1 / (3 sigma_t (1 - rho g)) (DSA for anisotropic scattering corrects the
+// isotropic part; the directional error decays by rho g_l a pass).
+void LpmSolve::continueWithDiffusionSeparable(int firstPass) {
+    const auto tp = Clock::now();
+    SeparableSource r = std::move(sep_->next);
+    sep_->unshot = SeparableSource();
+    DiffusionTail tail(m_);
+    int cycles = 0, p = firstPass;
+    Residual left{res_.passes.back().scattered, r.absolutePower(m_.sigmaT, m_.albedo, V_)};
+    for (; cycles < kMaxDiffusionCycles && p < s_.maxOrders; ++cycles) {
+        runner_->releaseBuffers();
+        sep_->binSource = std::vector<Bf16>();
+        const double inPower = r.power(sep_->map, sep_->binWeight, m_.albedo, V_);
+        std::vector<float> mean;
+        assignZeroed(mean, N_ * 3);
+        parallelForChunks(N_ * 3, 1 << 14, [&](size_t b, size_t e) {
+            for (size_t i = b; i < e; ++i) mean[i] = r.magnitude[i] * r.invWeight;
+        });
+        DiffusionSolve d = tail.solve(mean.data(), 3);
+        mean = std::vector<float>();
+        parallelForChunks(N_, 1 << 14, [&](size_t vb, size_t ve) {
+            for (size_t v = vb; v < ve; ++v)
+                for (int c = 0; c < 3; ++c)
+                    d.J[v * 3 + size_t(c)] *=
+                        sep_->map.parent[v] == FineCoarseMap::kNone ? 0.0f : tail.scale(c);
+        });
+        r.isotropic = std::move(d.J);  // r now holds E
+        const auto tf = Clock::now();
+        Tally t;
+        runSeparablePass(&r, t, nullptr, nullptr, &r.isotropic);  // r' = K E - omega rho J
+        recordPass(p++, t, tf);
+        r = std::move(sep_->next);
+        left = {r.power(sep_->map, sep_->binWeight, m_.albedo, V_), r.absolutePower(m_.sigmaT, m_.albedo, V_)};
+        res_.passes.back().scattered = std::fabs(left.power);
+        reportCycle(cycles, left);
+        tail.update(inPower, left.power);
+        if (!cycleConverged(left, true)) left = smoothSeparableResidual(r, p);
+        if (cycleConverged(left, true)) {
+            ++cycles;
+            break;
+        }
+    }
+    finishDiffusionCycles(cycles, left, tail.summary(cycles, res_.input > 0 ? std::fabs(left.power) / res_.input : 0.0,
+                                                     res_.input > 0 ? left.absolute / res_.input : 0.0),
+                          tail.cgSeconds, tp);
+}
+
+void LpmSolve::finishDiffusionCycles(int cycles, const Residual& left, const std::string& summary, double cgSeconds,
+                                     Clock::time_point start) {
     res_.converged = cycleConverged(left, true);
     recordAbsoluteResidual(left, true);
     res_.stoppedAtCycleCap = !res_.converged && cycles >= kMaxDiffusionCycles && int(res_.passes.size()) < s_.maxOrders;
-    char buf[300];
-    std::snprintf(buf, sizeof buf,
-                  "two-grid: diffusion tail, %d cycle(s) of a diffusion solve and one fine pass, %d CG iterations, "
-                  "factor down to %.3g, each residual smoothed by fine passes; source left %.3g of the input "
-                  "(absolute %.3g)",
-                  cycles, cgIterations, lowest, res_.input > 0 ? std::fabs(left.power) / res_.input : 0.0,
-                  res_.input > 0 ? left.absolute / res_.input : 0.0);
     if (s_.progress)
-        s_.progress("two-grid: " + std::to_string(std::chrono::duration<double>(Clock::now() - tp).count()) +
+        s_.progress("two-grid: " + std::to_string(std::chrono::duration<double>(Clock::now() - start).count()) +
                     " s, of which the diffusion solves " + std::to_string(cgSeconds) + " s");
-    res_.decisions.push_back(buf);
+    res_.decisions.push_back(summary);
     continuedOnCoarse_ = true;
 }
 

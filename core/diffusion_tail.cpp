@@ -43,17 +43,22 @@ struct ChunkSums {
 
 }  // namespace
 
-DiffusionOperator::DiffusionOperator(const Medium& m, double diffusionCap, double diffusionFloor)
+DiffusionOperator::DiffusionOperator(const Medium& m, double diffusionCap, double diffusionFloor,
+                                     double transportFactor)
     : m_(m), face_(m.voxelCount()) {
     if (!(diffusionCap > 0))
         throw Error("LPM", "diffusion tail: the cap on D must be > 0, got " + std::to_string(diffusionCap));
     if (!(diffusionFloor >= 0 && diffusionFloor <= diffusionCap))
         throw Error("LPM", "diffusion tail: the floor on D must be in [0, " + std::to_string(diffusionCap) + "], got " +
                                std::to_string(diffusionFloor));
+    if (!(transportFactor > 0 && transportFactor <= 2))
+        throw Error("LPM", "diffusion tail: the transport factor 1 - albedo g must be in (0, 2], got " +
+                               std::to_string(transportFactor));
     if (m.sparse()) linkTiles();
     const double h = m.voxelSize.x;
     const auto D = [&](std::size_t v) {
-        return std::clamp(1.0 / (3.0 * double(m.sigmaT[v])), diffusionFloor * h, diffusionCap * h);
+        return std::clamp(1.0 / (3.0 * double(m.sigmaT[v]) * transportFactor), diffusionFloor * h,
+                          diffusionCap * h);
     };
     const auto hasMedium = [&](std::size_t v) {
         int x, y, z;

@@ -2,7 +2,8 @@
 // session 49: diffusion synthetic acceleration on the fine grid). With U the source a pass
 // sweeps (emission sigma_s U) and J its mean radiance, one pass is K U = rho T U; diffusion
 // stands in for T, so the sources a residual r gives rise to beyond itself are rho J with
-//     (sigma_t (1 - rho) - div D grad) J = sigma_t r,    D = clamp(1 / (3 sigma_t), floor h, cap h)
+//     (sigma_t (1 - rho) - div D grad) J = sigma_t r,    D = clamp(1 / (3 sigma_tr), floor h, cap h)
+// with sigma_tr = sigma_t (1 - rho g) the transport extinction (sigma_t where g = 0)
 // on the stored voxels with extinction: cell-centred finite volumes, the harmonic mean of D
 // across a face between two such voxels, and a Marshak vacuum condition at a face to a
 // voxel without extinction (or outside the block), which adds 2 D / (h (h + 4 D)) to the
@@ -34,8 +35,10 @@ public:
     /// without bound, and with it the matrix's condition number). `diffusionFloor`: the
     /// smallest, in [0, diffusionCap] (thick voxels: the discrete transport carries light
     /// from voxel to voxel faster than 1 / (3 sigma_t) says; docs/multires.md, "Diffusion
-    /// tail"). Keeps a reference to `m`.
-    explicit DiffusionOperator(const Medium& m, double diffusionCap = 1.0, double diffusionFloor = 0.0);
+    /// tail"). `transportFactor`: sigma_tr / sigma_t = 1 - rho g, rho the channels' mean
+    /// albedo (1 for g = 0). Keeps a reference to `m`.
+    explicit DiffusionOperator(const Medium& m, double diffusionCap = 1.0, double diffusionFloor = 0.0,
+                               double transportFactor = 1.0);
 
     /// Solves A_c J_c = sigma_t b_c for each channel c (b_c of voxel v at b[v * stride + c],
     /// the means of the residual), A_c = sigma_t (1 - albedo_c) + leakage, until |residual|

@@ -57,6 +57,9 @@ private:
     void continueOnCoarse(int firstPass);
     void continueOnCoarseSeparable(int firstPass);
     void continueWithDiffusion(int firstPass);  ///< core/diffusion_cycle.cpp
+    void continueWithDiffusionSeparable(int firstPass);
+    void finishDiffusionCycles(int cycles, const Residual& left, const std::string& summary, double cgSeconds,
+                               Clock::time_point start);
     std::vector<float> tailShapeOf(const Medium& mc, const std::vector<float>& r) const;
     std::vector<float> coarseOrders(const Medium& mc, LpmSettings& cs, const SolvePlan& coarsePlan,
                                     std::vector<float> uc, const Residual& left, bool shapedTail, int cycle, int& p,
@@ -77,9 +80,10 @@ private:
                        const Residual& r, bool shapedTail, bool smoothed, Clock::time_point start);
     /// One fine pass with separable sources: of the light jobs (src null) or of `src`; its
     /// deposits fold into the SH result and sep_->next, less `takeFromNext` (a coarse part
-    /// held as SeparableSource::offset; SeparableFold::finish) when given.
+    /// held as SeparableSource::offset) and `takeIsotropic` (held as SeparableSource::isotropic;
+    /// SeparableFold::finish) when given.
     void runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs = nullptr,
-                          const HalfBuffer* takeFromNext = nullptr);
+                          const HalfBuffer* takeFromNext = nullptr, const std::vector<float>* takeIsotropic = nullptr);
     // The GMRES continuation (core/krylov_pass.cpp).
     void finishWithGmres();
     void finishWithGeometricTail();

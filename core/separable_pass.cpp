@@ -11,7 +11,7 @@ namespace lpm {
 LpmSolve::SeparableState::SeparableState(const Medium& fine) : coarse(coarsen(fine)), map(fine, coarse) {}
 
 void LpmSolve::runSeparablePass(const SeparableSource* src, Tally& t, const std::vector<Job>* lightJobs,
-                                const HalfBuffer* takeFromNext) {
+                                const HalfBuffer* takeFromNext, const std::vector<float>* takeIsotropic) {
     // 4 deposit buffers of 12 B per voxel in pass 0, 6 B after (8 x 12 B in the full fold)
     constexpr size_t kBatch = 4;
     std::vector<int> jobBin;
@@ -40,7 +40,7 @@ void LpmSolve::runSeparablePass(const SeparableSource* src, Tally& t, const std:
     // The deposit buffers go before finish() rounds the shape to half precision, which holds
     // its float sum and the rounded copy at once: the fine pass's peak would be there.
     runner_->releaseBuffers();
-    sep_->next = fold.finish(takeFromNext);
+    sep_->next = fold.finish(takeFromNext, takeIsotropic);
 }
 
 }  // namespace lpm

@@ -63,6 +63,7 @@ FineCoarseMap::FineCoarseMap(const Medium& f, const Medium& c) : coarseRows(c) {
 // (assignZeroed), where a plain copy or assign would fault it in 4 KiB at a time (about
 // 0.5 s of a plume-1M g = 0.6 bake went to those faults, docs/performance.md session 18).
 std::vector<float> SeparableSource::restricted() const {
+    if (!isotropic.empty()) throw Error("SeparableSource", "restricted is for a source without isotropic part");
     std::vector<float> out;
     assignZeroed(out, shape.size());
     const size_t nb = size_t(bins);
@@ -101,7 +102,7 @@ HalfBuffer SeparableSource::holdByBin(const std::vector<float>& x, int bins) {
 namespace {
 
 /// Coarse voxels [cb, ce) of fillBin: each parent's row decoded once and written to its
-/// children, U_f(bin) = R_C + (m_f - |R_C|) S_C + P_C (see the file comment). Every fine
+/// children, U_f(bin) = R_C + (m_f - |R_C|) S_C + P_C + t_f (see the file comment). Every fine
 /// voxel has one parent, so each output is written once, by one thread.
 inline void storeSource(float* out, float x) { *out = x; }
 inline void storeSource(Bf16* out, float x) { *out = bf16FromFloat(x); }
@@ -119,7 +120,8 @@ LPM_SIMD_CLONES void fillBinRange(size_t cb, size_t ce, const SeparableSource& u
             for (int k = 0; k < 8; ++k)
                 if (kids[k] != FineCoarseMap::kNone)
                     storeSource(&out[size_t(kids[k]) * 3 + c],
-                                r + (u.magnitude[size_t(kids[k]) * 3 + c] - n) * s + off);
+                                r + (u.magnitude[size_t(kids[k]) * 3 + c] - n) * s + off +
+                                    (u.isotropic.empty() ? 0.0f : u.isotropic[size_t(kids[k]) * 3 + c]));
         }
     }
 }
@@ -144,6 +146,7 @@ template void SeparableSource::fillBin(const FineCoarseMap&, int, Bf16*) const;
 
 double SeparableSource::power(const FineCoarseMap& map, const std::vector<double>& binWeight, const RGB& albedo,
                               double fineVoxelVolume) const {
+    if (!isotropic.empty()) throw Error("SeparableSource", "power is for a source without isotropic part");
     // Partial sums over fixed runs of coarse voxels, added in order: the same sum for any
     // thread count (serial, this loop held the other thread idle for 0.1 s of a plume-1M bake).
     const double p = parallelSumOfChunks(map.sigmaSum.size(), 1024, [&](size_t vb, size_t ve) {
@@ -163,7 +166,8 @@ double SeparableSource::power(const FineCoarseMap& map, const std::vector<double
 
 double SeparableSource::absolutePower(const std::vector<float>& sigmaT, const RGB& albedo,
                                       double fineVoxelVolume) const {
-    if (!offset.empty()) throw Error("SeparableSource", "absolutePower is for a source without offset");
+    if (!offset.empty() || !isotropic.empty())
+        throw Error("SeparableSource", "absolutePower is for a source without offset or isotropic part");
     if (magnitude.size() != sigmaT.size() * 3)
         throw Error("SeparableSource", "absolutePower: " + std::to_string(magnitude.size() / 3) + " magnitudes for " +
                                            std::to_string(sigmaT.size()) + " fine voxels");
@@ -368,8 +372,29 @@ void SeparableFold::takeIntegralFromChildren(const HalfBuffer& part) {
     });
 }
 
-SeparableSource SeparableFold::finish(const HalfBuffer* minus) {
+void SeparableFold::takeIsotropicFromShape(const std::vector<float>& t) {
     const size_t nb = size_t(nb_);
+    parallelForChunks(map_.rows(), 4096, [&](size_t cb, size_t ce) {
+        for (size_t ci = cb; ci < ce; ++ci) {
+            const float s = map_.sigmaSum[ci];
+            if (!(s > 0)) continue;
+            for (size_t c = 0; c < 3; ++c) {
+                double sum = 0;
+                for (size_t k = 0; k < 8; ++k) {
+                    const std::uint32_t f = map_.children[ci * 8 + k];
+                    if (f != FineCoarseMap::kNone) sum += double(sigmaT_[f]) * t[size_t(f) * 3 + c];
+                }
+                const float mean = float(sum / s);
+                for (size_t d = 0; d < nb; ++d) shapeSum_[(ci * nb + d) * 3 + c] -= mean;
+            }
+        }
+    });
+}
+
+SeparableSource SeparableFold::finish(const HalfBuffer* minus, const std::vector<float>* minusIsotropic) {
+    const size_t nb = size_t(nb_);
+    double weightSum = 0;
+    for (float w : binWeight_) weightSum += w;
     out_.coarseRows = map_.rows();
     if (minus && minus->size() != map_.rows() * nb * 3)
         throw Error("SeparableFold", "the part to take holds " + std::to_string(minus->size()) + " values for " +
@@ -385,12 +410,22 @@ SeparableSource SeparableFold::finish(const HalfBuffer* minus) {
         }
     });
     if (minus) takeIntegralFromChildren(*minus);
+    if (minusIsotropic) {
+        if (minusIsotropic->size() != map_.parent.size() * 3)
+            throw Error("SeparableFold", "the isotropic part to take holds " + std::to_string(minusIsotropic->size()) +
+                                             " values for " + std::to_string(map_.parent.size()) + " fine voxels");
+        takeIsotropicFromShape(*minusIsotropic);
+        const float W = float(weightSum);
+        parallelForChunks(map_.parent.size(), 4096, [&](size_t fb, size_t fe) {
+            for (size_t f = fb; f < fe; ++f)
+                if (map_.parent[f] != FineCoarseMap::kNone)
+                    for (size_t c = 0; c < 3; ++c) out_.magnitude[f * 3 + c] -= W * (*minusIsotropic)[f * 3 + c];
+        });
+    }
     out_.shape = SeparableSource::holdByBin(shapeSum_, nb_);
     shapeSum_ = std::vector<float>();
     assignZeroed(out_.norm, map_.sigmaSum.size() * 3);
     assignZeroed(out_.invAbs, map_.sigmaSum.size() * 3);
-    double weightSum = 0;
-    for (float w : binWeight_) weightSum += w;
     out_.invWeight = float(1.0 / weightSum);
     parallelForChunks(map_.sigmaSum.size(), 4096, [&](size_t cb, size_t ce) {
         for (size_t ci = cb; ci < ce; ++ci)

@@ -5,13 +5,14 @@
 // its coarse parent C the angular shape:
 //     m_f = sum_d w_d U_f(d)                                   [fine voxel][rgb]
 //     R_C(d) = sum_f sigma_f U_f(d) / sum_f sigma_f             [coarse voxel][bin][rgb]
-//     U_f(d) ~= R_C(d) + (m_f - |R_C|) S_C(d) + P_C(d),   |R_C| = sum_d w_d R_C(d)
+//     U_f(d) ~= R_C(d) + (m_f - |R_C|) S_C(d) + P_C(d) + t_f,   |R_C| = sum_d w_d R_C(d)
 // with S_C(d) = |R_C(d)| / sum_d w_d |R_C(d)| the parent's angular shape (isotropic where
 // R_C = 0): where R_C has one sign in every bin this is m_f R_C(d) / |R_C|, and it stays
 // linear in m_f where it has not (the two-grid cycle's residuals change sign; a division
 // by |R_C| there lost their sources and stalled the cycle at albedo 0.99).
 // P_C is a piecewise-constant part (the two-grid cycle's coarse tail), held as a
-// half-precision buffer (core/half_buffer.h). R_C is held in half precision
+// half-precision buffer (core/half_buffer.h); t_f an isotropic part of each fine voxel,
+// the same in every bin (the diffusion tail, core/diffusion_cycle.cpp), added to U_f(d). R_C is held in half precision
 // too, |R_C| and S_C taken from the rounded values. Exact: every fine voxel's angular
 // integral. To within R_C's rounding (2^-11): the sigma-weighted restriction (so the
 // source power of every coarse voxel in every bin). Approximate: how the angular shape
@@ -65,6 +66,9 @@ struct SeparableSource {
     /// P_C [bin][row][rgb], the sum of these parts (none: 0). Their sum is formed
     /// where it is read (fillBin, power, restricted), never as a coarse buffer of floats.
     std::vector<HalfBuffer> offset;
+    /// t_f [fine voxel][rgb]: added to every bin of fine voxel f (empty: none; 0 under a
+    /// parent without mass). Its integral is W t_f, W = sum_d w_d = 1 / invWeight.
+    std::vector<float> isotropic;
 
     /// x [row][bin][rgb] in half precision, held bin-major (as shape and offset).
     static HalfBuffer holdByBin(const std::vector<float>& x, int bins);
@@ -84,7 +88,8 @@ struct SeparableSource {
                  double fineVoxelVolume) const;
     /// The same sum with each fine voxel's angular integral taken by its absolute value,
     /// sum_f sigma_s |m_f| V (mean over RGB): what a signed sum hides where the source
-    /// changes sign between voxels (a two-grid residual). For a source without offset.
+    /// changes sign between voxels (a two-grid residual). For a source without offset or
+    /// isotropic part.
     double absolutePower(const std::vector<float>& sigmaT, const RGB& albedo, double fineVoxelVolume) const;
 };
 
@@ -106,12 +111,16 @@ public:
     /// less that piecewise-constant part, taken from R_C before it is rounded and its
     /// angular integral |P_C| from every child's m_f, so the result holds no offset (the
     /// restriction and every fine voxel's integral stay exact; the shape of m_f - |R_C|
-    /// becomes that of R_C - P_C).
-    SeparableSource finish(const HalfBuffer* minus = nullptr);
+    /// becomes that of R_C - P_C). With `minusIsotropic` (t_f [fine voxel][rgb], held as
+    /// SeparableSource::isotropic): the folded source less that isotropic part, taken from
+    /// every bin of R_C by its children's sigma-weighted mean and from m_f by W t_f.
+    SeparableSource finish(const HalfBuffer* minus = nullptr, const std::vector<float>* minusIsotropic = nullptr);
 
 private:
     /// m_f -= |part| of f's parent ([bin][row][rgb] held by bin), for every fine voxel.
     void takeIntegralFromChildren(const HalfBuffer& part);
+    /// R_C(d) -= the children's sigma-weighted mean of t (every bin), before R_C is rounded.
+    void takeIsotropicFromShape(const std::vector<float>& t);
 
     const FineCoarseMap& map_;
     const std::vector<float>& sigmaT_;

@@ -286,9 +286,9 @@ void planDiffusionTail(const SceneSummary& scene, const LpmSettings& s, SolvePla
     const bool thickVoxels = scene.maxVoxelTau >= s.diffusionTailTau;
     const bool large = scene.opticalSize >= s.diffusionTailSize;
     if (s.diffusionTail != 1 && !(bright && (thickVoxels || large))) return;
-    std::string whyNot;
-    if (plan.separableSource) whyNot = "separable fine sources";
-    else if (plan.binsPerFace != 0) whyNot = "unshot bins (the diffusion tail is isotropic)";
+    std::string whyNot;  // with unshot bins the cycle adds its isotropic tail to the separable form
+    if (plan.binsPerFace != 0 && !plan.separableSource)
+        whyNot = "unshot bins with full fine sources (the diffusion tail is added to separable ones)";
     plan.diffusionTail = whyNot.empty();
     const std::string why =
         s.diffusionTail == 1

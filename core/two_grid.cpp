@@ -173,12 +173,12 @@ void LpmSolve::reportCycle(int cycle, const Residual& left) const {
 }
 
 void LpmSolve::continueOnCoarse(int firstPass) {
-    if (sep_) {
-        continueOnCoarseSeparable(firstPass);
-        return;
-    }
     if (plan_.diffusionTail) {
         continueWithDiffusion(firstPass);
+        return;
+    }
+    if (sep_) {
+        continueOnCoarseSeparable(firstPass);
         return;
     }
     const auto tp = Clock::now();

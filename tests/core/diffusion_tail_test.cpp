@@ -110,6 +110,17 @@ TEST(DiffusionOperator, NamesBadInput) {
     EXPECT_THROW(DiffusionOperator(m, 1.0, 1.5), Error);  // a floor above the cap
 }
 
+// Anisotropic scattering: D = 1 / (3 sigma_t (1 - rho g)), the transport coefficient, so a
+// transport factor of 0.5 doubles every face below the cap; a factor outside (0, 2] is named.
+TEST(DiffusionOperator, TransportFactorScalesTheFaces) {
+    const Medium m = makeBox(6, 6, 6, 2.0);
+    const DiffusionOperator plain(m), forward(m, 1.0, 0.0, 0.5);
+    const std::size_t v = m.index(2, 2, 2);
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(forward.faces(v)[size_t(k)] / plain.faces(v)[size_t(k)], 2.0, 1e-5);
+    EXPECT_THROW(DiffusionOperator(m, 1.0, 0.0, 0.0), Error);
+    EXPECT_THROW(DiffusionOperator(m, 1.0, 0.0, NAN), Error);
+}
+
 // The floor on D: in voxels thicker than 1 / (3 floor) the faces carry what D = floor
 // gives, in thinner ones 1 / (3 sigma_t) as without it.
 TEST(DiffusionOperator, FloorRaisesTheFacesOfThickVoxelsOnly) {
@@ -216,6 +227,31 @@ TEST(DiffusionCycle, OpticallyLargeMediumOfThinVoxelsTakesItBySize) {
     EXPECT_TRUE(saidDecision(b,
                              "two-grid tail from a fine-grid diffusion solve: albedo up to 0.99 >= 0.97 and the "
                              "medium's thickest region"));
+    EXPECT_TRUE(b.converged);
+    EXPECT_LE(b.absoluteResidual, b.absoluteLine);
+    EXPECT_LT(b.passes.size(), a.passes.size());
+    EXPECT_LT(errB, errA);
+    EXPECT_NEAR(b.absorbed + b.escaped + b.unshot, b.injected, 2e-3 * b.injected);
+}
+
+// Anisotropic scattering (g = 0.6: unshot bins, separable fine sources): the cycle adds its
+// tail isotropically to the separable form (core/diffusion_cycle.cpp) with the transport
+// coefficient. Against the coarse grid's cycle and the fixed point both iterate toward
+// (full resolution, full sources, tolerance 1e-5): fewer passes, and closer (measured:
+// 0.61% from the fixed point in 8 passes, against 0.89% in 63).
+TEST(DiffusionCycle, AnisotropicCloudTakesItOnSeparableSources) {
+    Scene sc = makeScene(Case{"thick cloud, g = 0.6", VolumeKind::Cloud, 0.6, 0.99, 64.0}, 32);
+    sc.lights.env = &sc.sky;
+    LpmSettings constant;  // a linear source with bins (auto at this size) holds them in full
+    constant.linearSource = 0;
+    const TailRuns runs(sc, constant);
+    const LpmResult &a = runs.coarse, &b = runs.automatic;
+    const double errA = runs.coarseError, errB = runs.automaticError;
+    std::printf("against full resolution: coarse tail %.5f (%zu passes), diffusion tail %.5f (%zu)\n", errA,
+                a.passes.size(), errB, b.passes.size());
+    EXPECT_TRUE(saidDecision(b, "separable fine sources"));
+    EXPECT_TRUE(saidDecision(b, "two-grid tail from a fine-grid diffusion solve: albedo up to"));
+    EXPECT_TRUE(saidDecision(b, "two-grid: diffusion tail"));
     EXPECT_TRUE(b.converged);
     EXPECT_LE(b.absoluteResidual, b.absoluteLine);
     EXPECT_LT(b.passes.size(), a.passes.size());

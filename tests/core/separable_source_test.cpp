@@ -93,7 +93,8 @@ struct FoldInput {
 };
 
 SeparableSource foldSeparably(const Medium& f, const FineCoarseMap& map, const FoldInput& in, std::vector<float>& sh,
-                              size_t batch, const HalfBuffer* minus = nullptr) {
+                              size_t batch, const HalfBuffer* minus = nullptr,
+                              const std::vector<float>* minusIsotropic = nullptr) {
     SeparableFold fold(map, f.sigmaT, in.binWeight, in.coeffs);
     sh.assign(f.voxelCount() * in.coeffs * 3, 0.0f);
     for (size_t b0 = 0; b0 < in.jobs.size(); b0 += batch) {
@@ -101,7 +102,7 @@ SeparableSource foldSeparably(const Medium& f, const FineCoarseMap& map, const F
         std::vector<std::vector<float>> phi(in.phi.begin() + long(b0), in.phi.begin() + long(b0 + n));
         fold.fold(true, &in.jobs[b0], n, phi, sh);
     }
-    return fold.finish(minus);
+    return fold.finish(minus, minusIsotropic);
 }
 
 // The separable fold of `in` in batches of 3, 4 and 7 jobs against the full fold's SH,
@@ -288,6 +289,67 @@ TEST(SeparableSource, FinishTakesAPartFromTheRestrictionAndEveryIntegral) {
     SeparableFold wrong(map, f.sigmaT, in.binWeight, in.coeffs);
     const HalfBuffer short_ = SeparableSource::holdByBin(std::vector<float>(in.bins * 3, 1.0f), in.bins);
     EXPECT_THROW(wrong.finish(&short_), Error);
+}
+
+// An isotropic part t_f per fine voxel (the diffusion tail, core/diffusion_cycle.cpp):
+// fillBin adds it to every bin of the voxel, and finish takes it from the folded source by
+// its children's sigma-weighted mean in every bin of R_C and by W t_f from each m_f, so the
+// restriction and every integral of K E - t stay exact. Sources holding one have no
+// power() (the cycle measures r, not E); a part of the wrong size is named.
+TEST(SeparableSource, IsotropicPartIsFilledIntoEveryBinAndTakenExactly) {
+    const Medium f = blockWithEmptySlab(9);
+    const Medium c = coarsen(f);
+    const FineCoarseMap map(f, c);
+    const FoldInput in(f, 6, 4);
+    Pcg32 rng(12, 5);
+    std::vector<float> t(f.voxelCount() * 3, 0.0f);
+    for (size_t v = 0; v < f.voxelCount(); ++v)
+        if (map.parent[v] != FineCoarseMap::kNone)
+            for (int ch = 0; ch < 3; ++ch) t[v * 3 + ch] = 0.6f * (float(rng.uniform()) - 0.3f);
+    std::vector<float> sh;
+    const SeparableSource plain = foldSeparably(f, map, in, sh, 4);
+    const SeparableSource taken = foldSeparably(f, map, in, sh, 4, nullptr, &t);
+    EXPECT_TRUE(taken.isotropic.empty());
+    double W = 0;
+    for (double w : in.binWeight) W += float(w);
+    for (size_t v = 0; v < f.voxelCount(); ++v)
+        for (int ch = 0; ch < 3; ++ch) {
+            const double want = plain.magnitude[v * 3 + ch] - W * t[v * 3 + ch];
+            ASSERT_NEAR(taken.magnitude[v * 3 + ch], want, 1e-5 * (1 + std::fabs(want))) << "voxel " << v;
+        }
+    const std::vector<float> rPlain = plain.restricted(), rTaken = taken.restricted();
+    size_t checked = 0;
+    for (size_t p = 0; p < map.rows(); ++p)
+        for (int ch = 0; ch < 3; ++ch) {
+            double sum = 0;
+            for (int k = 0; k < 8; ++k) {
+                const std::uint32_t kid = map.children[p * 8 + size_t(k)];
+                if (kid != FineCoarseMap::kNone) sum += double(f.sigmaT[kid]) * t[size_t(kid) * 3 + size_t(ch)];
+            }
+            const double mean = sum / map.sigmaSum[p];
+            for (int d = 0; d < in.bins; ++d) {
+                const size_t i = (p * size_t(in.bins) + size_t(d)) * 3 + size_t(ch);
+                const double want = rPlain[i] - mean;
+                ASSERT_NEAR(rTaken[i], want, std::ldexp(1.0, -10) * (std::fabs(rPlain[i]) + std::fabs(mean)) + 1e-6)
+                    << "row " << p << " bin " << d;
+                ++checked;
+            }
+        }
+    EXPECT_GT(checked, size_t(100));
+    // Filled: the plain source's value plus t_f in every bin, 0 outside the parents.
+    SeparableSource withPart = foldSeparably(f, map, in, sh, 4);
+    withPart.isotropic = t;
+    std::vector<float> a(f.voxelCount() * 3), b(f.voxelCount() * 3);
+    for (int d = 0; d < in.bins; ++d) {
+        plain.fillBin(map, d, a.data());
+        withPart.fillBin(map, d, b.data());
+        for (size_t i = 0; i < a.size(); ++i) ASSERT_NEAR(b[i] - a[i], t[i], 1e-5f * (1 + std::fabs(a[i]))) << i;
+    }
+    EXPECT_THROW(withPart.power(map, in.binWeight, RGB(0.9f), f.voxelVolume()), Error);
+    EXPECT_THROW(withPart.absolutePower(f.sigmaT, RGB(0.9f), f.voxelVolume()), Error);
+    SeparableFold wrong(map, f.sigmaT, in.binWeight, in.coeffs);
+    const std::vector<float> short_(3, 1.0f);
+    EXPECT_THROW(wrong.finish(nullptr, &short_), Error);
 }
 
 // Reconstruction: every fine voxel's angular integral is its magnitude, exactly, though
