@@ -348,7 +348,8 @@ void addSolverOptions(CLI::App& app, Args& a) {
            "coarse voxel may be "
            "optically thicker than 1, else flat), shaped (by the first residual its children hold: closer to full "
            "resolution voxel by voxel, 1.5-2.2x the time where coarse voxels are thicker than 1), flat, diffusion "
-           "(from a diffusion solve on the fine grid, no coarse grid: thick media at albedo near 1; one unshot bin)")
+           "(from a diffusion solve on the fine grid, no coarse grid: thick media at albedo near 1; one unshot bin or "
+           "separable sources)")
         ->default_val("auto")
         ->check(CLI::IsMember({"auto", "shaped", "flat", "diffusion"}))
         ->group(gS);

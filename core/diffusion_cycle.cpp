@@ -11,6 +11,7 @@
 // The diffusion problem is solved by CG with a multigrid preconditioner
 // (core/diffusion_multigrid.h).
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -61,24 +62,26 @@ public:
         const DiffusionMultigrid multigrid(diffusion);
         DiffusionSolve d = diffusion.solve(b, stride, m_.albedo, kCgTolerance, kCgMaxIterations, &multigrid);
         cgSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - tc).count();
-        cgIterations += d.iterations;
+        cgIterations_ += d.iterations;
         return d;
     }
     /// The tail factor omega rho_c for channel c.
-    float scale(int c) const { return omega * m_.albedo[c]; }
+    float scale(int c) const { return omega_ * m_.albedo[c]; }
     /// After a cycle took the signed power inPower to outPower: the next factor.
     void update(double inPower, double outPower) {
-        if (inPower != 0) omega = float(std::clamp(omega / (1.0 - outPower / inPower), 0.5, 1.0));
-        lowest = std::min(lowest, omega);
+        if (inPower != 0) omega_ = float(std::clamp(omega_ / (1.0 - outPower / inPower), 0.5, 1.0));
+        lowest_ = std::min(lowest_, omega_);
     }
     /// The solve's line for the result's decisions.
-    std::string summary(int cycles, double left, double absolute) const {
+    std::string summary(int cycles, double power, double absolute, double input) const {
+        const double left = input > 0 ? std::fabs(power) / input : 0.0;
+        const double leftAbsolute = input > 0 ? absolute / input : 0.0;
         char buf[300];
         std::snprintf(buf, sizeof buf,
                       "two-grid: diffusion tail, %d cycle(s) of a diffusion solve and one fine pass, %d CG "
                       "iterations, factor down to %.3g, each residual smoothed by fine passes; source left %.3g of "
                       "the input (absolute %.3g)",
-                      cycles, cgIterations, lowest, left, absolute);
+                      cycles, cgIterations_, lowest_, left, leftAbsolute);
         return buf;
     }
     double cgSeconds = 0;
@@ -86,8 +89,8 @@ public:
 private:
     const Medium& m_;
     double transport_;  ///< sigma_tr / sigma_t = 1 - rho g
-    float omega = 1.0f, lowest = 1.0f;
-    int cgIterations = 0;
+    float omega_ = 1.0f, lowest_ = 1.0f;
+    int cgIterations_ = 0;
 };
 
 }  // namespace
@@ -132,9 +135,8 @@ void LpmSolve::continueWithDiffusion(int firstPass) {
             break;
         }
     }
-    finishDiffusionCycles(cycles, left, tail.summary(cycles, res_.input > 0 ? std::fabs(left.power) / res_.input : 0.0,
-                                                     res_.input > 0 ? left.absolute / res_.input : 0.0),
-                          tail.cgSeconds, tp);
+    finishDiffusionCycles(cycles, left, tail.summary(cycles, left.power, left.absolute, res_.input), tail.cgSeconds,
+                          tp);
 }
 
 // The same cycle with separable fine sources (core/separable_source.h): the tail omega rho J
@@ -154,18 +156,13 @@ void LpmSolve::continueWithDiffusionSeparable(int firstPass) {
         runner_->releaseBuffers();
         sep_->binSource = std::vector<Bf16>();
         const double inPower = r.power(sep_->map, sep_->binWeight, m_.albedo, V_);
-        std::vector<float> mean;
-        assignZeroed(mean, N_ * 3);
-        parallelForChunks(N_ * 3, 1 << 14, [&](size_t b, size_t e) {
-            for (size_t i = b; i < e; ++i) mean[i] = r.magnitude[i] * r.invWeight;
-        });
-        DiffusionSolve d = tail.solve(mean.data(), 3);
-        mean = std::vector<float>();
+        // The solve is linear: J of the integrals m_f, times 1 / W, is J of the means.
+        DiffusionSolve d = tail.solve(r.magnitude.data(), 3);
         parallelForChunks(N_, 1 << 14, [&](size_t vb, size_t ve) {
             for (size_t v = vb; v < ve; ++v)
                 for (int c = 0; c < 3; ++c)
                     d.J[v * 3 + size_t(c)] *=
-                        sep_->map.parent[v] == FineCoarseMap::kNone ? 0.0f : tail.scale(c);
+                        sep_->map.parent[v] == FineCoarseMap::kNone ? 0.0f : tail.scale(c) * r.invWeight;
         });
         r.isotropic = std::move(d.J);  // r now holds E
         const auto tf = Clock::now();
@@ -183,9 +180,8 @@ void LpmSolve::continueWithDiffusionSeparable(int firstPass) {
             break;
         }
     }
-    finishDiffusionCycles(cycles, left, tail.summary(cycles, res_.input > 0 ? std::fabs(left.power) / res_.input : 0.0,
-                                                     res_.input > 0 ? left.absolute / res_.input : 0.0),
-                          tail.cgSeconds, tp);
+    finishDiffusionCycles(cycles, left, tail.summary(cycles, left.power, left.absolute, res_.input), tail.cgSeconds,
+                          tp);
 }
 
 void LpmSolve::finishDiffusionCycles(int cycles, const Residual& left, const std::string& summary, double cgSeconds,

@@ -57,8 +57,7 @@ DiffusionOperator::DiffusionOperator(const Medium& m, double diffusionCap, doubl
     if (m.sparse()) linkTiles();
     const double h = m.voxelSize.x;
     const auto D = [&](std::size_t v) {
-        return std::clamp(1.0 / (3.0 * double(m.sigmaT[v]) * transportFactor), diffusionFloor * h,
-                          diffusionCap * h);
+        return std::clamp(1.0 / (3.0 * double(m.sigmaT[v]) * transportFactor), diffusionFloor * h, diffusionCap * h);
     };
     const auto hasMedium = [&](std::size_t v) {
         int x, y, z;

@@ -48,7 +48,7 @@ struct LpmSettings {
                                           ///< docs/multires.md "Diffusion tail"): -1 auto (albedo up to at least
                                           ///< diffusionTailAlbedo, and fine voxels up to optical depth at least
                                           ///< diffusionTailTau or a medium at least diffusionTailSize across),
-                                          ///< 0 off, 1 on; one unshot bin, sources not separable
+                                          ///< 0 off, 1 on; one unshot bin or separable sources
     double diffusionTailAlbedo = 0.97;    ///< auto threshold: the largest channel's albedo
     double diffusionTailTau = 2.0;        ///< auto threshold: the largest fine voxel's optical depth
     double diffusionTailSize = 60.0;      ///< auto threshold: the optical size of the medium's thickest region

@@ -303,8 +303,9 @@ TEST(SolvePlan, DiffusionTailOnRequestWithOneBinOrSeparableSources) {
     full.separableSource = 0;  // bins held in full
     const SolvePlan binsInFull = planSolve(sc, full, 2);
     EXPECT_FALSE(binsInFull.diffusionTail);
-    EXPECT_TRUE(says(binsInFull, "two-grid tail from the coarse grid (diffusion requested): unshot bins with full "
-                                 "fine sources"));
+    EXPECT_TRUE(says(binsInFull,
+                     "two-grid tail from the coarse grid (diffusion requested): unshot bins with full "
+                     "fine sources"));
     EXPECT_FALSE(planSolve(smallScene(), on, 2).diffusionTail);  // full resolution: no cycle
 }
 
