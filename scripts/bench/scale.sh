@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Time and memory against the active voxels (docs/performance.md): default bakes of
-# procedural volumes generated here (no large files in the repo; two at g = 0.6, SH order 2,
-# one of them a thick cumulus at albedo 0.99 where GMRES runs), each a separate process
+# procedural volumes generated here (no large files in the repo; three at g = 0.6, SH order 2,
+# two of them a cumulus at albedo 0.99, where GMRES or the diffusion tail runs), each a separate process
 # so peak RSS is its own.
 #   scripts/bench/scale.sh [--quick] [--large] [--mantaflow] [--threads N] [--original PATH-TO-AN-OLDER-lpmbake]
 # --large adds the 8M cloud (g = 0 and g = 0.6) and the 50M-active-voxel cloud in a
@@ -35,6 +35,9 @@ scenes=(
   "plume-1M|plume --res 124|--albedo 0.9 --density-scale 0.25"
   "plume-1M-g0.6|plume --res 124|--albedo 0.9 --density-scale 0.25 --g 0.6"
   "cumulus-1M-g0.6-a0.99|cloud --res 160|--albedo 0.99 --density-scale 0.6 --g 0.6"
+  # The same cloud at twice the density (116 optical depths across under delta-M): the
+  # diffusion tail on separable sources (docs/multires.md, "On separable sources").
+  "cumulus-1M-g0.6-a0.99-dense|same cumulus-1M-g0.6-a0.99|--albedo 0.99 --density-scale 1.2 --g 0.6"
   # The same cloud at g = 0 and 6.7x the density (voxels up to optical depth 4): the
   # planner takes the diffusion tail (docs/multires.md, "Diffusion tail").
   "cumulus-1M-a0.99-thick|same cumulus-1M-g0.6-a0.99|--albedo 0.99 --density-scale 4"
