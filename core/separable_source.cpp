@@ -399,6 +399,9 @@ SeparableSource SeparableFold::finish(const HalfBuffer* minus, const std::vector
     if (minus && minus->size() != map_.rows() * nb * 3)
         throw Error("SeparableFold", "the part to take holds " + std::to_string(minus->size()) + " values for " +
                                          std::to_string(map_.rows()) + " rows of " + std::to_string(nb) + " bins");
+    if (minusIsotropic && minusIsotropic->size() != map_.parent.size() * 3)
+        throw Error("SeparableFold", "the isotropic part to take holds " + std::to_string(minusIsotropic->size()) +
+                                         " values for " + std::to_string(map_.parent.size()) + " fine voxels");
     parallelForChunks(map_.sigmaSum.size(), 4096, [&](size_t cb, size_t ce) {
         for (size_t ci = cb; ci < ce; ++ci) {
             const float s = map_.sigmaSum[ci];
@@ -411,9 +414,6 @@ SeparableSource SeparableFold::finish(const HalfBuffer* minus, const std::vector
     });
     if (minus) takeIntegralFromChildren(*minus);
     if (minusIsotropic) {
-        if (minusIsotropic->size() != map_.parent.size() * 3)
-            throw Error("SeparableFold", "the isotropic part to take holds " + std::to_string(minusIsotropic->size()) +
-                                             " values for " + std::to_string(map_.parent.size()) + " fine voxels");
         takeIsotropicFromShape(*minusIsotropic);
         const float W = float(weightSum);
         parallelForChunks(map_.parent.size(), 4096, [&](size_t fb, size_t fe) {
