@@ -155,11 +155,12 @@ void LpmSolve::finishWithGmres() {
             for (size_t i = b0; i < e0; ++i) outv[i] = v[i] - outv[i];
         });
     };
-    // Krylov vectors are the big memory cost: cap their number by the memory budget, down
-    // to 3 (core/two_grid.cpp: GMRES(2) took 1.7x the passes). They are held in half
-    // precision (core/gmres.h).
+    // Krylov vectors are the big memory cost: cap their number by the memory budget (the
+    // planner's, core/solve_plan.cpp, at most the settings'), down to 3 (core/two_grid.cpp:
+    // GMRES(2) took 1.7x the passes). They are held in half precision (core/gmres.h).
     const size_t vecBytes = len * sizeof(std::uint16_t);
-    const int restart = int(std::clamp<size_t>(size_t(s_.krylovBytes / double(std::max<size_t>(1, vecBytes))), 3,
+    const double basisBytes = std::min(s_.krylovBytes, plan_.krylovBytes);
+    const int restart = int(std::clamp<size_t>(size_t(basisBytes / double(std::max<size_t>(1, vecBytes))), 3,
                                                size_t(std::max(4, s_.krylovRestart))));
     const auto budget = [&] { return pass_ < s_.maxOrders; };
     const double target = gmresTarget(bNorm, coarse);

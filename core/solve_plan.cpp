@@ -27,6 +27,10 @@ std::string format(const char* fmt, double a = 0, double b = 0, double c = 0, do
 /// Issue 9's memory line (target 5): 300 B a written voxel + 200 MiB.
 constexpr double kMemoryLinePerVoxel = 300;
 constexpr double kMemoryLineBase = 200.0 * 1024 * 1024;
+/// What a bake takes beside the solve's buffers (libraries, the grids read, the binned
+/// environment): 65.6 MiB peak for the bundled fire at albedo 0.3 and g = 0, whose buffers
+/// the planner predicts at 3 MiB.
+constexpr double kProcessBytes = 64.0 * 1024 * 1024;
 
 std::string dims(int k) { return std::to_string(k) + "x" + std::to_string(k) + "x" + std::to_string(k); }
 
@@ -413,6 +417,35 @@ void planCost(const SceneSummary& scene, const LpmSettings& s, int threads, Solv
     }
 }
 
+/// GMRES's Krylov basis, one half-precision vector of the unshot source's size each, is the
+/// largest buffer a full-resolution solve can add (a two-grid solve's coarse grid caps its
+/// own: core/two_grid.cpp). It may take what issue 9's memory line leaves after the process
+/// (kProcessBytes), the planned buffers and GMRES's two further float vectors (X and one
+/// product), at most s.krylovBytes, and 4 vectors at least: the bundled fire at density 8,
+/// g = 0.6, albedo 0.99 (24 bins in full, linear source) peaked at 549 MiB with 23 of 40
+/// vectors in 6.8 s, at 266 MiB with 4 in 6.2-6.4 s and at 248 MiB with 3 in 7.0 s
+/// (docs/performance.md, "Session 54").
+void planKrylovBasis(const SceneSummary& scene, const LpmSettings& s, SolvePlan& plan) {
+    plan.krylovBytes = s.krylovBytes;
+    if (!plan.krylov || plan.coarseFrom > 0 || plan.separableSource || scene.continuation) return;
+    const double bins = plan.binsPerFace == 0 ? 1 : 6.0 * plan.binsPerFace * plan.binsPerFace;
+    const double N = double(scene.storedVoxels), wanted = double(scene.wantedVoxels ? scene.wantedVoxels : N);
+    const double floats = N * bins * (plan.linearSource ? 4 : 1) * 3;  // one vector of the unshot source
+    const double vectorBytes = floats * sizeof(std::uint16_t);
+    const double line = kMemoryLinePerVoxel * wanted + kMemoryLineBase;
+    const double left = line - kProcessBytes - plan.predictedBytes - 2 * floats * sizeof(float);
+    if (std::min(s.krylovBytes, s.krylovRestart * vectorBytes) <= left) return;
+    const double vectors = std::max(4.0, std::floor(left / vectorBytes));
+    plan.krylovBytes = std::min(s.krylovBytes, vectors * vectorBytes);
+    constexpr double MiB = 1024.0 * 1024.0;
+    PlanDecision& gmres = *std::find_if(plan.decisions.begin(), plan.decisions.end(),
+                                        [](const PlanDecision& d) { return d.what == "GMRES allowed"; });
+    gmres.why += format("; its basis holds %.0f Krylov vectors of %.3g MiB: the memory line of %.0f MiB leaves %.3g "
+                        "MiB after the solve's other buffers (4 at least)",
+                        vectors, vectorBytes / MiB, line / MiB, std::max(0.0, left) / MiB);
+    gmres.predictedBytes = vectors * vectorBytes;
+}
+
 }  // namespace
 
 SceneSummary summarizeScene(const Medium& m, const Lights& lights, const EnvBinning* binned, bool continuation) {
@@ -470,6 +503,7 @@ SolvePlan planSolve(const SceneSummary& input, const LpmSettings& s, int threads
     planResolution(scene, s, plan);
     planAcceleration(s, plan);
     planCost(scene, s, threads, plan);
+    planKrylovBasis(scene, s, plan);
     return plan;
 }
 
