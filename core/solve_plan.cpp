@@ -440,9 +440,10 @@ void planKrylovBasis(const SceneSummary& scene, const LpmSettings& s, SolvePlan&
     constexpr double MiB = 1024.0 * 1024.0;
     PlanDecision& gmres = *std::find_if(plan.decisions.begin(), plan.decisions.end(),
                                         [](const PlanDecision& d) { return d.what == "GMRES allowed"; });
-    gmres.why += format("; its basis holds %.0f Krylov vectors of %.3g MiB: the memory line of %.0f MiB leaves %.3g "
-                        "MiB after the solve's other buffers (4 at least)",
-                        vectors, vectorBytes / MiB, line / MiB, std::max(0.0, left) / MiB);
+    gmres.why += format(
+        "; its basis holds %.0f Krylov vectors of %.3g MiB: the memory line of %.0f MiB leaves %.3g "
+        "MiB after the solve's other buffers (4 at least)",
+        vectors, vectorBytes / MiB, line / MiB, std::max(0.0, left) / MiB);
     gmres.predictedBytes = vectors * vectorBytes;
 }
 

@@ -73,7 +73,8 @@ struct SolvePlan {
     int raysHigher = 2;            ///< rays per voxel of the later passes
     bool krylov = true;            ///< GMRES may take over when plain iteration would be slow
     int krylovAfter = 25;          ///< switch when plain iteration predicts more passes than this
-    double krylovBytes = std::numeric_limits<double>::infinity();  ///< GMRES's Krylov basis at most (3 vectors at least)
+    /// GMRES's Krylov basis at most, in bytes (the solver keeps 3 vectors at least)
+    double krylovBytes = std::numeric_limits<double>::infinity();
     double predictedSegmentsPerFinePass = 0;  ///< ray-segment updates of one full-resolution pass
     double predictedSecondsPerFinePass = 0;   ///< at the planner's throughput estimate
     double predictedBytes = 0;                ///< the solve's main buffers

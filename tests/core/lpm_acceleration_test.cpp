@@ -79,6 +79,30 @@ TEST(KrylovAcceleration, AgreesWithPlainIteration) {
     EXPECT_LT(worst, 2e-3);
 }
 
+TEST(KrylovAcceleration, TheSmallestBasisAgreesWithPlainIteration) {
+    // Where the memory line leaves little, the planner caps GMRES's basis
+    // (SolvePlan::krylovBytes; the solver keeps 3 vectors at least): restarted every 3
+    // vectors, GMRES still reaches plain iteration's answer in fewer passes.
+    SkyPlume scene(20.0, RGB(0.98f, 0.95f, 0.9f));
+    scene.m.g = 0.4;
+    LpmSettings plain;
+    plain.krylov = false;
+    plain.tolerance = 1e-5;
+    plain.maxOrders = 5000;
+    LpmSettings capped;
+    capped.tolerance = 1e-4;
+    capped.krylovBytes = 1;
+    const LpmResult a = solveLpm(scene.m, scene.lights, plain), b = solveLpm(scene.m, scene.lights, capped);
+    ASSERT_TRUE(a.converged);
+    ASSERT_TRUE(b.converged);
+    EXPECT_TRUE(saidDecision(b, "(restart 3)"));
+    EXPECT_LT(b.passes.size(), a.passes.size());
+    const double apart = band0RelativeRms(scene.m, a, b);
+    std::printf("[ krylov ] plain %zu passes, GMRES(3) %zu passes, band 0 apart %.2e\n", a.passes.size(),
+                b.passes.size(), apart);
+    EXPECT_LT(apart, 2e-3);
+}
+
 TEST(KrylovAcceleration, StopsAtTheSolvesOwnTolerance) {
     // GMRES on the fine grid stops on the solve's stop test (LpmSolve::gmresTarget): what
     // it leaves, grown by the passes that would still propagate it (at most 1 / (1 - c)),

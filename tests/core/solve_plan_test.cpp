@@ -167,6 +167,36 @@ TEST(SolvePlan, LinearSourceWithBinsOnlyUnderTheMemoryLine) {
     EXPECT_TRUE(planSolve(sc, LpmSettings{}, 2).linearSource) << "one isotropic bin";
 }
 
+TEST(SolvePlan, FullResolutionKrylovBasisUnderTheMemoryLine) {
+    SceneSummary sc = smallScene();
+    const LpmSettings s;
+    EXPECT_EQ(planSolve(sc, s, 2).krylovBytes, s.krylovBytes) << "g = 0: 40 vectors of 192 KiB fit";
+    EXPECT_FALSE(says(planSolve(sc, s, 2), "Krylov vectors"));
+    // 32^3 at g = 0.6: 24 bins, a vector of 4.5 MiB. The line (300 B a voxel + 200 MiB)
+    // leaves 99.8 MiB after the process (64 MiB), the planned buffers (27.4 MiB) and
+    // GMRES's two float vectors (18 MiB): 22 vectors.
+    sc.g = 0.6;
+    const double vector = 32768.0 * 24 * 3 * 2;
+    const SolvePlan bins = planSolve(sc, s, 2);
+    EXPECT_EQ(bins.krylovBytes, 22 * vector);
+    EXPECT_TRUE(says(bins, "its basis holds 22 Krylov vectors of 4.5 MiB"));
+    // With the linear source (voxels of optical depth 3.5) the rest is over the line: 4.
+    sc.maxVoxelTau = 3.5;
+    const SolvePlan linear = planSolve(sc, s, 2);
+    ASSERT_TRUE(linear.linearSource);
+    EXPECT_EQ(linear.krylovBytes, 4 * 4 * vector);
+    EXPECT_TRUE(says(linear, "its basis holds 4 Krylov vectors of 18 MiB"));
+    EXPECT_TRUE(says(linear, "leaves 0 MiB after the solve's other buffers (4 at least)"));
+    LpmSettings smaller;
+    smaller.krylovBytes = vector;  // the settings' cap is kept where it is tighter
+    EXPECT_EQ(planSolve(sc, smaller, 2).krylovBytes, vector);
+    LpmSettings noGmres;
+    noGmres.krylov = false;
+    EXPECT_FALSE(says(planSolve(sc, noGmres, 2), "Krylov vectors"));
+    // A two-grid solve: its coarse grid caps its own basis (core/two_grid.cpp).
+    EXPECT_EQ(planSolve(largeCumulus(), s, 2).krylovBytes, s.krylovBytes);
+}
+
 TEST(SolvePlan, DeltaMOnlyForwardAndGrey) {
     SceneSummary sc = smallScene();
     sc.g = 0.8;
