@@ -384,7 +384,7 @@ void addSolverOptions(CLI::App& app, Args& a) {
     app.add_option(
            "--krylov-restart", a.b.solver.krylovRestart,
            "GMRES restarts after this many Krylov vectors (4 at least; each the unshot source in half precision): "
-           "fewer hold less memory and may need more passes")
+           "fewer hold less memory and may need more passes; the plan caps them under the memory line (4 at least)")
         ->default_val(a.b.solver.krylovRestart)
         ->group(gS);
     // Read as text and converted here: CLI11 would refuse "nan" without naming the allowed

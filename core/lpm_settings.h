@@ -31,9 +31,10 @@ struct LpmSettings {
     int krylovAfter = 25;       ///< switch when plain iteration would need more than this many passes
     int coarseKrylovAfter = 8;  ///< the same on the multi-resolution coarse grid (its passes are cheap)
     int krylovRestart = 40;     ///< GMRES restart length (capped by krylovBytes, down to 3)
-    double krylovBytes = double(std::size_t(2) << 30);  ///< memory GMRES's Krylov vectors may take, in
-                                                        ///< half precision (the two-grid solve gives its
-                                                        ///< coarse grid 64 B per fine stored voxel)
+    /// Memory GMRES's Krylov vectors may take, in half precision. The plan caps it further:
+    /// at full resolution by the memory line (core/solve_plan.cpp, 4 vectors at least); the
+    /// two-grid solve gives its coarse grid 40 B per fine stored voxel (core/two_grid.cpp).
+    double krylovBytes = double(std::size_t(2) << 30);
     bool coarseTailExtrapolation = true;  ///< the two-grid coarse solve stops early where its passes decay
                                           ///< geometrically and adds the rest as that series
                                           ///< (docs/multires.md, "Geometric tail"); so does a
