@@ -156,8 +156,8 @@ struct TailRuns {
     /// Prints both runs; the planner's tail converged in both measures, in fewer passes,
     /// closer to the fixed point, and its energy balances.
     void expectTheTailConvergesCloserInFewerPasses() const {
-        std::printf("against full resolution: coarse tail %.5f (%zu passes), diffusion tail %.5f (%zu)\n",
-                    coarseError, coarse.passes.size(), automaticError, automatic.passes.size());
+        std::printf("against full resolution: coarse tail %.5f (%zu passes), diffusion tail %.5f (%zu)\n", coarseError,
+                    coarse.passes.size(), automaticError, automatic.passes.size());
         EXPECT_TRUE(automatic.converged);
         EXPECT_LE(automatic.absoluteResidual, automatic.absoluteLine);
         EXPECT_LT(automatic.passes.size(), coarse.passes.size());
