@@ -17,6 +17,7 @@
 
 #include "core/delta_m.h"
 #include "core/env_binning.h"
+#include "core/flush_denormals.h"
 #include "core/gmres.h"
 #include "core/half_buffer.h"
 #include "core/half_source_pass.h"
@@ -425,6 +426,7 @@ void LpmResult::expandSh() {
 }
 
 LpmResult solveLpm(const Medium& m, const Lights& lights, const LpmSettings& settings) {
+    const FlushDenormals flush;  // as every parallel task does (core/flush_denormals.h)
     m.validate();
     validateLights(lights);
     LpmSettings s = settings;

@@ -7,6 +7,8 @@
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
 
+#include "core/flush_denormals.h"
+
 namespace lpm {
 
 double parallelSumOfChunks(std::size_t n, std::size_t grain,
@@ -26,6 +28,7 @@ void parallelForChunks(std::size_t n, std::size_t grain, const std::function<voi
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, chunks, 1),
         [&](const tbb::blocked_range<std::size_t>& r) {
+            const FlushDenormals flush;  // the same mode on every thread (core/flush_denormals.h)
             for (std::size_t c = r.begin(); c != r.end(); ++c) {
                 const std::size_t b = c * grain;
                 const std::size_t e = b + grain < n ? b + grain : n;
